@@ -1,0 +1,234 @@
+"""The parallel PSB-MPC evaluator (paper Algorithm 3) — pure, traceable JAX.
+
+Axes: B behaviours, O obstacles, S scenarios, P polygons, V vertices, T = N+1 time samples.
+
+* **Kernel 1** (over B): own-ship rollouts and the path cost H_p.
+* **Kernel 2** (over the n_ct = B·(P + O·S) work items): the grounding cost per (l, j) and, per (l, i, s),
+  the collision cost C_s^{l,i} and the COLREGS indicator μ_s^{l,i}.
+* **Reduction** on the device: max over j, Σ_s P_s(·), Σ_i w_i(·), + H_p, then the argmin.
+
+Collision work is laid out for throughput: a cheap dense pass over (B, O·S, T) finds the points that pass
+the σ-shortcut and the COLREGS flags; the (row, time-block) pairs holding an active point are compacted
+and only those are sent, ``chunk_rows`` at a time, through the (expensive) collision-probability estimator.
+``PlannerConfig.pc_layout = "dense"`` evaluates every point instead (test oracle, big accelerators).
+"""
+
+from __future__ import annotations
+
+from functools import partial
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+from .costs.collision import collision_probability, shortcut_mask
+from .costs.colregs import violation
+from .costs.grounding import grounding_costs
+from .costs.path import path_cost
+from .obstacles import obstacle_covariances, obstacle_scenarios, positional_stats
+from .ownship import Trajectory, make_path, ownship_rollouts
+from .params import Params, PlannerConfig
+
+
+class SituationArrays(NamedTuple):
+    """Padded device inputs of one solve (built by :func:`psbmpc_jax.planner.pack_situation`).
+
+    Own-ship: ``own_state [4]``, route ``own_wx, own_wy [1, W]``, ``own_n [1]``, nominal speed ``U_d``,
+    ``own_length``.  Obstacles (padded to O): ``obs_state [O, 4]``, ``obs_cov [O, 4, 4]``,
+    ``obs_length [O]``, routes ``obs_wx, obs_wy [O, Wo]`` with ``obs_n [O]``, ``obs_n_ps [O]``,
+    ``obs_probs [O, S]`` (0 in padding), ``obs_weight [O]``, ``obs_zeta [O]``, ``obs_mask [O]``.
+    Polygons: ``poly_vertices [P, V, 2]``, ``poly_n [P]``, ``poly_mask [P]``.  Behaviours:
+    ``behaviours [B, n_M, 2]``, ``beh_mask [B]``.  Planner state: ``last_offsets [2]``.
+    """
+
+    own_state: jax.Array
+    own_wx: jax.Array
+    own_wy: jax.Array
+    own_n: jax.Array
+    U_d: jax.Array
+    own_length: jax.Array
+    obs_state: jax.Array
+    obs_cov: jax.Array
+    obs_length: jax.Array
+    obs_wx: jax.Array
+    obs_wy: jax.Array
+    obs_n: jax.Array
+    obs_n_ps: jax.Array
+    obs_probs: jax.Array
+    obs_weight: jax.Array
+    obs_zeta: jax.Array
+    obs_mask: jax.Array
+    poly_vertices: jax.Array
+    poly_n: jax.Array
+    poly_mask: jax.Array
+    behaviours: jax.Array
+    beh_mask: jax.Array
+    last_offsets: jax.Array
+
+
+class Evaluation(NamedTuple):
+    """Everything one solve produces (padded shapes; padded behaviours have cost +inf).
+
+    ``best`` index, ``best_offsets [n_M, 2]``; per-behaviour costs ``total, do, colregs, so, path [B]``;
+    ``C, mu [B, O, S]`` (collision cost, COLREGS indicator); ``so_j [B, P]``; trajectories ``own``
+    (components ``[B, T]``) and ``obstacles`` (``[O, S, T]``); ``obs_cov [O, T, 4, 4]``;
+    ``n_pc_blocks``: number of (row, time block) pairs sent to the collision-probability estimator.
+    """
+
+    best: jax.Array
+    best_offsets: jax.Array
+    total: jax.Array
+    do: jax.Array
+    colregs: jax.Array
+    so: jax.Array
+    path: jax.Array
+    C: jax.Array
+    mu: jax.Array
+    so_j: jax.Array
+    own: Trajectory
+    obstacles: Trajectory
+    obs_cov: jax.Array
+    n_pc_blocks: jax.Array
+
+
+def _pad_time(a, t_pad: int, axis: int = -1):
+    """Pad the time axis at the end by repeating the last sample."""
+    if t_pad == 0:
+        return a
+    widths = [(0, 0)] * a.ndim
+    widths[axis] = (0, t_pad)
+    return jnp.pad(a, widths, mode="edge")
+
+
+def _collision_terms(own: Trajectory, obs: Trajectory, cov_stats, radius, zeta_k, scen_valid, t, params: Params,
+                     config: PlannerConfig, samples):
+    """C [B, O·S] and μ [B, O·S] plus the number of estimator blocks."""
+    n_b, n_t = own.x.shape
+    n_o, n_s = obs.x.shape[:2]
+    n_os = n_o * n_s
+    tb = min(config.time_block, n_t)
+    n_blk = -(-n_t // tb)
+    t_pad = n_blk * tb - n_t
+    dtype = own.x.dtype
+
+    t_valid = jnp.arange(n_blk * tb) < n_t
+    disc = _pad_time(jnp.exp(-t / params.T_d), t_pad)
+    px, py = _pad_time(own.x, t_pad), _pad_time(own.y, t_pad)
+    cos_c, sin_c = jnp.cos(own.chi), jnp.sin(own.chi)
+    vx, vy = _pad_time(own.U * cos_c, t_pad), _pad_time(own.U * sin_c, t_pad)
+    cos_c, sin_c = _pad_time(cos_c, t_pad), _pad_time(sin_c, t_pad)
+    flat = lambda a: _pad_time(a.reshape(n_os, n_t), t_pad)
+    qx, qy, wx, wy = flat(obs.x), flat(obs.y), flat(obs.vx), flat(obs.vy)
+    sxx, sxy, syy, smax = (_pad_time(c, t_pad) for c in cov_stats)             # [O, Tp]
+    rep_s = lambda a: jnp.repeat(a, n_s, axis=0)                                # [O, ...] -> [O·S, ...]
+    r_os = rep_s(radius)                                                        # [O·S]
+    thr_os = rep_s(radius[:, None] + params.c_sigma * smax)                     # [O·S, Tp]
+    valid_os = scen_valid.reshape(n_os)
+
+    # dense pass: shortcut mask and COLREGS flags over (B, O·S, Tp)
+    dx = qx[None] - px[:, None]
+    dy = qy[None] - py[:, None]
+    live = valid_os[None, :, None] & t_valid[None, None, :]
+    active = (dx * dx + dy * dy <= thr_os[None] ** 2) & live
+    viol = violation(dx, dy, vx[:, None], vy[:, None], wx[None], wy[None], cos_c[:, None], sin_c[:, None],
+                     params.d_close) & live
+    mu = jnp.any(viol, axis=-1).astype(dtype)                                  # [B, O·S]
+
+    def block_terms(dx, dy, dvx, dvy, s_xx, s_xy, s_yy, rad, zk, dsc, act):
+        p = collision_probability(dx, dy, s_xx, s_xy, s_yy, rad, params, config, samples)
+        term = zk * (dvx * dvx + dvy * dvy) * p * dsc
+        return jnp.max(jnp.where(act, term, 0.0), axis=-1)
+
+    zk_os = rep_s(zeta_k)
+    if config.pc_layout == "dense":
+        o_of = jnp.arange(n_os) // n_s
+        c = block_terms(dx, dy, wx[None] - vx[:, None], wy[None] - vy[:, None], sxx[o_of][None],
+                        sxy[o_of][None], syy[o_of][None], r_os[None, :, None], zk_os[None, :, None],
+                        disc[None, None], active)
+        return c, mu, jnp.sum(jnp.any(active.reshape(n_b, n_os, n_blk, tb), axis=-1))
+
+    # compact: (row, block) pairs that hold at least one active point
+    act_rb = jnp.any(active.reshape(n_b, n_os, n_blk, tb), axis=-1).reshape(-1)   # [(B·O·S)·nblk]
+    n_act = jnp.sum(act_rb, dtype=jnp.int32)
+    chunk = config.chunk_rows
+    (idx,) = jnp.nonzero(act_rb, size=act_rb.shape[0], fill_value=0)
+    idx = jnp.concatenate([idx.astype(jnp.int32), jnp.zeros((chunk,), jnp.int32)])
+    blk3 = lambda a: a.reshape(a.shape[0], n_blk, tb)
+    px3, py3, vx3, vy3 = blk3(px), blk3(py), blk3(vx), blk3(vy)
+    qx3, qy3, wx3, wy3 = blk3(qx), blk3(qy), blk3(wx), blk3(wy)
+    sxx3, sxy3, syy3, thr3 = blk3(sxx), blk3(sxy), blk3(syy), blk3(thr_os)
+    disc2, tval2 = disc.reshape(n_blk, tb), t_valid.reshape(n_blk, tb)
+
+    def body(state):
+        c, acc = state
+        items = jax.lax.dynamic_slice(idx, (c * chunk,), (chunk,))
+        ok = c * chunk + jnp.arange(chunk) < n_act
+        blk, row = items % n_blk, items // n_blk
+        os_, l = row % n_os, row // n_os
+        o = os_ // n_s
+        dx_ = qx3[os_, blk] - px3[l, blk]
+        dy_ = qy3[os_, blk] - py3[l, blk]
+        act = (dx_ * dx_ + dy_ * dy_ <= thr3[os_, blk] ** 2) & tval2[blk] & ok[:, None]
+        rmax = block_terms(dx_, dy_, wx3[os_, blk] - vx3[l, blk], wy3[os_, blk] - vy3[l, blk],
+                           sxx3[o, blk], sxy3[o, blk], syy3[o, blk], r_os[os_][:, None],
+                           zk_os[os_][:, None], disc2[blk], act)
+        acc = acc.at[row].max(jnp.where(ok, rmax, 0.0))
+        return c + 1, acc
+
+    acc0 = jnp.zeros((n_b * n_os,), dtype)
+    _, acc = jax.lax.while_loop(lambda s: s[0] * chunk < n_act, body, (jnp.int32(0), acc0))
+    return acc.reshape(n_b, n_os), mu, n_act
+
+
+def evaluate_arrays(sit: SituationArrays, params: Params, samples, config: PlannerConfig) -> Evaluation:
+    """Un-jitted evaluator body (jit it through :func:`evaluate`)."""
+    n_steps, dt = config.n_steps, config.dt
+    dtype = sit.own_state.dtype
+    t = jnp.arange(n_steps + 1, dtype=dtype) * dt
+
+    # kernel 1: own-ship rollouts and path cost, over B
+    own_path = make_path(sit.own_wx, sit.own_wy, sit.own_n)
+    own = ownship_rollouts(sit.own_state, own_path, sit.U_d, sit.behaviours, params, n_steps, dt)
+    h_path = path_cost(sit.behaviours, sit.last_offsets, params)
+
+    # obstacle prediction scenarios + covariances (independent of the behaviour)
+    n_o, n_s = sit.obs_probs.shape
+    obs = obstacle_scenarios(sit.obs_state, sit.obs_wx, sit.obs_wy, sit.obs_n, sit.obs_n_ps, n_s, params,
+                             n_steps, dt)
+    cov = obstacle_covariances(sit.obs_cov, params, n_steps, dt)
+    cov_stats = positional_stats(cov)
+    scen_valid = sit.obs_mask[:, None] & (jnp.arange(n_s)[None, :] < sit.obs_n_ps[:, None])
+    radius = params.d_safe + 0.5 * (sit.own_length + sit.obs_length)
+    zeta_k = sit.obs_zeta * params.K_coll
+
+    # kernel 2: (l, i, s) items and (l, j) items
+    c_flat, mu_flat, n_blocks = _collision_terms(own, obs, cov_stats, radius, zeta_k, scen_valid, t, params,
+                                                 config, samples)
+    c = c_flat.reshape(-1, n_o, n_s)
+    mu = mu_flat.reshape(-1, n_o, n_s)
+    so_j = grounding_costs(own.x, own.y, t, sit.poly_vertices, sit.poly_n, sit.poly_mask, params).T  # [B, P]
+
+    # reductions (15), (11), (10), (13), (9) and the argmin
+    wp = (sit.obs_weight * sit.obs_mask)[:, None] * sit.obs_probs                 # [O, S]
+    h_do = jnp.sum(wp[None] * c, axis=(1, 2))
+    h_col = params.kappa * jnp.sum(wp[None] * mu, axis=(1, 2))
+    h_so = jnp.max(so_j, axis=1, initial=0.0)
+    total = jnp.where(sit.beh_mask, h_do + h_col + h_so + h_path, jnp.inf)
+    best = jnp.argmin(total)
+    return Evaluation(best, sit.behaviours[best], total, h_do, h_col, h_so, h_path, c, mu, so_j, own, obs, cov,
+                      n_blocks)
+
+
+@partial(jax.jit, static_argnames=("config",))
+def evaluate(sit: SituationArrays, params: Params, samples, config: PlannerConfig) -> Evaluation:
+    """Jitted entry point: one compile per (config, padded shapes, dtype); values never recompile."""
+    return evaluate_arrays(sit, params, samples, config)
+
+
+def cost_only(sit, params, samples, config):
+    """Just (best, total) — what a benchmark or a vmapped sweep needs."""
+    ev = evaluate_arrays(sit, params, samples, config)
+    return ev.best, ev.total
+
+
+__all__ = ["SituationArrays", "Evaluation", "evaluate", "evaluate_arrays", "cost_only"]

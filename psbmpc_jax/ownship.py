@@ -1,0 +1,135 @@
+"""Kinematic model + LOS path following (SPEC §2, docs/algorithm.md §2-4), as ``lax.scan`` rollouts.
+
+The same follower predicts the own-ship under every control behaviour (kernel 1) and every obstacle
+prediction scenario.  Rows are independent: axis R is B behaviours for the own-ship, O*S for obstacles.
+Trajectories are returned as a :class:`Trajectory` of component arrays ``[R, N+1]`` (structure of arrays:
+the collision kernel reads x, y, vx, vy separately).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+from .numerics import wrap_angle
+
+
+class Path(NamedTuple):
+    """Padded polylines, one per row: waypoints ``wx, wy [R, W]``, counts ``n [R]`` (>= 2).
+
+    ``alpha, ca, sa, seg_len [R, W-1]`` are the segment angles, their cos/sin and lengths (padding
+    segments hold zeros and are never selected)."""
+
+    wx: jax.Array
+    wy: jax.Array
+    n: jax.Array
+    alpha: jax.Array
+    ca: jax.Array
+    sa: jax.Array
+    seg_len: jax.Array
+
+
+class Trajectory(NamedTuple):
+    """Predicted states, each ``[R, N+1]``: position x, y, course chi, speed U."""
+
+    x: jax.Array
+    y: jax.Array
+    chi: jax.Array
+    U: jax.Array
+
+    @property
+    def vx(self):
+        return self.U * jnp.cos(self.chi)
+
+    @property
+    def vy(self):
+        return self.U * jnp.sin(self.chi)
+
+    def stacked(self):
+        """``[R, N+1, 4]`` array of ``[x, y, chi, U]``."""
+        return jnp.stack([self.x, self.y, self.chi, self.U], axis=-1)
+
+
+def make_path(wx, wy, n) -> Path:
+    """Segment data for padded waypoints ``wx, wy [R, W]`` with ``n [R]`` valid points each."""
+    dx, dy = jnp.diff(wx, axis=-1), jnp.diff(wy, axis=-1)
+    valid = jnp.arange(wx.shape[-1] - 1) < (n[..., None] - 1)
+    dx, dy = jnp.where(valid, dx, 1.0), jnp.where(valid, dy, 0.0)
+    alpha = jnp.arctan2(dy, dx)
+    seg_len = jnp.sqrt(dx * dx + dy * dy)
+    return Path(wx, wy, n, alpha, jnp.cos(alpha), jnp.sin(alpha), seg_len)
+
+
+def _take(table, idx):
+    return jnp.take_along_axis(table, idx[:, None], axis=1)[:, 0]
+
+
+def los_rollout(x0, path: Path, chi_offsets, U_cmd, lateral_offset, lookahead, R_a, T_chi, T_U, dt,
+                unroll: int = 1) -> Trajectory:
+    """Roll the kinematic model with LOS guidance forward N steps for R rows.
+
+    Args:
+        x0: initial states ``[R, 4]`` (x, y, chi, U).
+        path: per-row padded polylines.
+        chi_offsets, U_cmd: per-step course offset and speed reference, ``[N, R]`` (time-major).
+        lateral_offset: per-row lateral path offset ``[R]`` (positive = starboard).
+        lookahead, R_a, T_chi, T_U, dt: scalars.
+    """
+    n_rows = x0.shape[0]
+    last_seg = path.n - 2
+
+    def seg_geometry(z):
+        zi = jnp.minimum(z, last_seg)
+        return (_take(path.wx, zi), _take(path.wy, zi), _take(path.ca, zi), _take(path.sa, zi), zi)
+
+    def step(carry, xs):
+        x, y, chi, U, z = carry
+        chi_off, u_ref = xs
+        wzx, wzy, ca, sa, zi = seg_geometry(z)
+        along = (x - wzx) * ca + (y - wzy) * sa
+        nx, ny = _take(path.wx, zi + 1) - x, _take(path.wy, zi + 1) - y
+        switch = (z <= last_seg) & ((nx * nx + ny * ny <= R_a * R_a) | (along >= _take(path.seg_len, zi)))
+        z = z + switch.astype(z.dtype)
+        wzx, wzy, ca, sa, zi = seg_geometry(z)
+        e = -(x - wzx) * sa + (y - wzy) * ca
+        chi_los = _take(path.alpha, zi) + jnp.where(
+            z <= last_seg, jnp.arctan(-(e - lateral_offset) / lookahead), 0.0)
+        chi_cmd = chi_los + chi_off
+        x_new = x + dt * U * jnp.cos(chi)
+        y_new = y + dt * U * jnp.sin(chi)
+        chi_new = wrap_angle(chi + (dt / T_chi) * wrap_angle(chi_cmd - chi))
+        U_new = U + (dt / T_U) * (u_ref - U)
+        return (x_new, y_new, chi_new, U_new, z), (x_new, y_new, chi_new, U_new)
+
+    init = (x0[:, 0], x0[:, 1], wrap_angle(x0[:, 2]), x0[:, 3], jnp.zeros(n_rows, jnp.int32))
+    _, outs = jax.lax.scan(step, init, (chi_offsets, U_cmd), unroll=unroll)
+    comps = [jnp.concatenate([i[None], o], axis=0).T for i, o in zip(init[:4], outs)]
+    return Trajectory(*comps)
+
+
+def maneuver_index(n_steps: int, n_m: int, t_ts, dt):
+    """Active maneuver per step ``[N]``: the largest M with k_M <= k, k_M = round(M t_ts / dt)."""
+    k_m = jnp.round(jnp.arange(n_m) * t_ts / dt).astype(jnp.int32)
+    k = jnp.arange(n_steps, dtype=jnp.int32)
+    return jnp.sum(k[:, None] >= k_m[None, :], axis=1) - 1
+
+
+def ownship_rollouts(own_state, path: Path, U_d, offsets, params, n_steps: int, dt, unroll: int = 1):
+    """Own-ship trajectory under every behaviour (kernel 1, rollout part).
+
+    Args:
+        own_state: ``[4]``; path: a single-row :class:`Path` (``[1, W]``); U_d: nominal speed;
+        offsets: behaviour table ``[B, n_M, 2]``; params: :class:`~psbmpc_jax.params.Params`.
+    """
+    n_b, n_m = offsets.shape[0], offsets.shape[1]
+    t_ts = jnp.where(jnp.isnan(params.t_ts), n_steps * dt / n_m, params.t_ts)
+    m_of_k = maneuver_index(n_steps, n_m, t_ts, dt)                       # [N]
+    chi_off = offsets[:, :, 1].T[m_of_k]                                   # [N, B]
+    u_ref = U_d * offsets[:, :, 0].T[m_of_k]                               # [N, B]
+    bpath = Path(*(jnp.broadcast_to(a, (n_b,) + a.shape[1:]) for a in path))
+    x0 = jnp.broadcast_to(own_state, (n_b, 4))
+    zeros = jnp.zeros((n_b,), own_state.dtype)
+    return los_rollout(x0, bpath, chi_off, u_ref, zeros, params.os_lookahead, params.os_R_a,
+                       params.os_T_chi, params.os_T_U, dt, unroll=unroll)

@@ -1,0 +1,751 @@
+"""Sequential float64 NumPy reference of the PSB-MPC cost (the paper's Algorithm 2).
+
+This module is the test oracle of the JAX evaluator and the "CPU sequential" baseline of the benchmark.
+It implements ``docs/algorithm.md`` literally, one behaviour at a time:
+
+* obstacle prediction scenarios and their covariances are generated once (§5-6);
+* ``for l in behaviours``: own-ship rollout (§2-4), path cost, ``for j in polygons``: grounding cost,
+  ``for i in obstacles: for s in scenarios``: collision cost ``C_s^{l,i}`` and COLREGS indicator
+  ``mu_s^{l,i}`` (§7-8).
+
+Inside one (l, i, s) the per-step geometry (distances, the sigma shortcut mask, COLREGS flags) is vectorised
+over the time steps k with NumPy; the collision probability is then evaluated point by point for the steps
+that pass the shortcut.  Everything is float64; only NumPy and the standard library are used.
+
+Axis names: B behaviours, M maneuvers, S scenarios, T = N + 1 time samples.
+Frame: NED (x north, y east) [m], course from north, clockwise positive [rad].
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from .behaviours import validate_behaviours
+from .params import ESTIMATORS, Params, PlannerConfig, validate_params
+from .problem import Obstacle, OwnShip, Situation
+
+__all__ = [
+    "ReferenceResult",
+    "evaluate_reference",
+    "wrap_angle",
+    "los_rollout",
+    "maneuver_start_steps",
+    "ownship_trajectory",
+    "obstacle_initial_state",
+    "obstacle_path",
+    "obstacle_scenarios",
+    "ou_covariance",
+    "obstacle_covariances",
+    "sigma_max",
+    "collision_probability",
+    "collision_cost",
+    "colregs_violation",
+    "polygon_distance",
+    "polygon_distances",
+    "grounding_cost",
+    "path_cost",
+    "normal_cdf",
+]
+
+_TWO_PI = 2.0 * math.pi
+_SQRT2 = math.sqrt(2.0)
+COS_67_5 = math.cos(math.radians(67.5))
+COS_22_5 = math.cos(math.radians(22.5))
+
+
+# ----------------------------------------------------------------------------------------------------------
+# small helpers
+# ----------------------------------------------------------------------------------------------------------
+def wrap_angle(a):
+    """Wrap an angle (scalar or array) to [-pi, pi): ``(a + pi) mod 2 pi - pi``."""
+    if isinstance(a, (float, int)) and not isinstance(a, bool):
+        return (float(a) + math.pi) % _TWO_PI - math.pi
+    return np.mod(np.asarray(a, dtype=float) + math.pi, _TWO_PI) - math.pi
+
+
+def _wrap(a: float) -> float:
+    return (a + math.pi) % _TWO_PI - math.pi
+
+
+def normal_cdf(x: float) -> float:
+    """Standard normal CDF, float64: ``0.5 * erfc(-x / sqrt(2))``."""
+    return 0.5 * math.erfc(-x / _SQRT2)
+
+
+def _phi_ratio(num: float, s: float) -> float:
+    """Phi(num / s), with its s -> 0+ limit (step function, 1/2 at num = 0) for a degenerate chord spread."""
+    if s > 0.0:
+        return 0.5 * math.erfc(-(num / s) / _SQRT2)
+    if num > 0.0:
+        return 1.0
+    if num < 0.0:
+        return 0.0
+    return 0.5
+
+
+@lru_cache(maxsize=16)
+def _leggauss(n: int) -> tuple[np.ndarray, np.ndarray]:
+    t, w = np.polynomial.legendre.leggauss(int(n))
+    t.setflags(write=False)
+    w.setflags(write=False)
+    return t, w
+
+
+def _chol2(S) -> tuple[float, float, float]:
+    """Lower Cholesky factor [[l00, 0], [l10, l11]] of a 2x2 covariance, as in algorithm.md §7 (mc).
+
+    Degenerate inputs (S_xx = 0, or a rounding-negative Schur complement) give zero entries instead of NaN.
+    """
+    l00 = math.sqrt(max(float(S[0][0]), 0.0))
+    l10 = float(S[0][1]) / l00 if l00 > 0.0 else 0.0
+    l11 = math.sqrt(max(float(S[1][1]) - l10 * l10, 0.0))
+    return l00, l10, l11
+
+
+def sigma_max(S) -> float:
+    """Largest positional standard deviation sqrt(lambda_max(S)) of a 2x2 covariance (closed form, §6)."""
+    a, b, c = float(S[0][0]), float(S[0][1]), float(S[1][1])
+    lam = 0.5 * (a + c) + math.sqrt((0.5 * (a - c)) ** 2 + b * b)
+    return math.sqrt(max(lam, 0.0))
+
+
+# ----------------------------------------------------------------------------------------------------------
+# §2-3 path following + kinematic model
+# ----------------------------------------------------------------------------------------------------------
+def _per_step(values, n_steps: int, name: str) -> np.ndarray:
+    arr = np.asarray(values, dtype=float)
+    if arr.ndim == 0:
+        arr = np.full(n_steps, float(arr))
+    arr = arr.reshape(-1)
+    if arr.shape != (n_steps,):
+        raise ValueError(f"{name} must be a scalar or have length n_steps={n_steps}, got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be finite")
+    return arr
+
+
+def los_rollout(x0, waypoints, chi_offsets, U_cmd, lateral_offset, lookahead, R_a, T_chi, T_U, dt,
+                n_steps) -> np.ndarray:
+    """Roll out the kinematic model (§3) under LOS path following (§2).
+
+    Args:
+        x0: initial state ``[x, y, chi, U]``.
+        waypoints: path ``[n >= 2, 2]``.
+        chi_offsets: ``[N]`` course offset added to chi_LOS at each step k = 0..N-1 (or a scalar).
+        U_cmd: ``[N]`` speed reference at each step (or a scalar).
+        lateral_offset: lateral path offset o [m] (positive = starboard of the path).
+        lookahead: LOS lookahead distance Delta [m].
+        R_a: waypoint acceptance radius [m].
+        T_chi, T_U: course and speed time constants [s].
+        dt: time step [s].
+        n_steps: N.
+
+    Returns:
+        ``[N + 1, 4]`` trajectory ``[x, y, chi, U]``; row 0 is ``x0``.
+    """
+    n_steps = int(n_steps)
+    if n_steps < 0:
+        raise ValueError(f"n_steps must be >= 0, got {n_steps}")
+    x0 = np.asarray(x0, dtype=float)
+    if x0.shape != (4,):
+        raise ValueError(f"x0 must be a state [x, y, chi, U] of shape (4,), got {x0.shape}")
+    wps = np.asarray(waypoints, dtype=float)
+    if wps.ndim != 2 or wps.shape[1] != 2 or wps.shape[0] < 2:
+        raise ValueError(f"waypoints must have shape [n >= 2, 2], got {wps.shape}")
+    chi_off = _per_step(chi_offsets, n_steps, "chi_offsets")
+    u_ref = _per_step(U_cmd, n_steps, "U_cmd")
+
+    n = wps.shape[0]
+    wx = [float(v) for v in wps[:, 0]]
+    wy = [float(v) for v in wps[:, 1]]
+    alpha = [math.atan2(wy[z + 1] - wy[z], wx[z + 1] - wx[z]) for z in range(n - 1)]
+    seg_len = [math.hypot(wx[z + 1] - wx[z], wy[z + 1] - wy[z]) for z in range(n - 1)]
+    cos_a = [math.cos(a) for a in alpha]
+    sin_a = [math.sin(a) for a in alpha]
+    o = float(lateral_offset)
+    delta = float(lookahead)
+    R_a = float(R_a)
+    dt = float(dt)
+    k_chi = dt / float(T_chi)
+    k_u = dt / float(T_U)
+
+    traj = np.empty((n_steps + 1, 4))
+    traj[0] = x0
+    x, y, chi, U = (float(v) for v in x0)
+    z = 0
+    for k in range(n_steps):
+        # 1. switch (at most once per step)
+        if z <= n - 2:
+            s = (x - wx[z]) * cos_a[z] + (y - wy[z]) * sin_a[z]
+            d_next = math.hypot(x - wx[z + 1], y - wy[z + 1])
+            if d_next <= R_a or s >= seg_len[z]:
+                z += 1
+        # 2. guidance
+        if z <= n - 2:
+            e = -(x - wx[z]) * sin_a[z] + (y - wy[z]) * cos_a[z]
+            chi_los = alpha[z] + math.atan(-(e - o) / delta)
+        else:
+            chi_los = alpha[n - 2]
+        chi_cmd = chi_los + chi_off[k]
+        # 3. explicit Euler, old state on the right-hand side
+        x_new = x + dt * U * math.cos(chi)
+        y_new = y + dt * U * math.sin(chi)
+        chi_new = _wrap(chi + k_chi * _wrap(chi_cmd - chi))
+        U_new = U + k_u * (u_ref[k] - U)
+        x, y, chi, U = x_new, y_new, chi_new, U_new
+        traj[k + 1, 0] = x
+        traj[k + 1, 1] = y
+        traj[k + 1, 2] = chi
+        traj[k + 1, 3] = U
+    return traj
+
+
+# ----------------------------------------------------------------------------------------------------------
+# §4 own-ship behaviours
+# ----------------------------------------------------------------------------------------------------------
+def _as_behaviour(behaviour) -> np.ndarray:
+    arr = np.asarray(behaviour, dtype=float)
+    if arr.ndim != 2 or arr.shape[1] != 2 or arr.shape[0] < 1:
+        raise ValueError(
+            f"behaviour must have shape [n_M >= 1, 2] (speed factor, course offset), got {arr.shape}"
+        )
+    return arr
+
+
+def maneuver_start_steps(n_m: int, params: Params, config: PlannerConfig) -> np.ndarray:
+    """k_M = round((M - 1) t_ts / dt), M = 1..n_M, with t_ts = T / n_M when ``params.t_ts`` is NaN."""
+    t_ts = float(params.t_ts)
+    if math.isnan(t_ts):
+        t_ts = float(config.T) / n_m
+    return np.array([int(round(m * t_ts / float(config.dt))) for m in range(n_m)], dtype=np.int64)
+
+
+def ownship_trajectory(own_ship: OwnShip, behaviour, params: Params = Params(),
+                       config: PlannerConfig = PlannerConfig()) -> np.ndarray:
+    """Own-ship trajectory ``[N + 1, 4]`` under one behaviour ``[n_M, 2]`` (§4)."""
+    beh = _as_behaviour(behaviour)
+    n_m = beh.shape[0]
+    n_steps = config.n_steps
+    k_start = maneuver_start_steps(n_m, params, config)
+    # active maneuver at step k: the largest M with k_M <= k
+    active = np.searchsorted(k_start, np.arange(n_steps), side="right") - 1
+    chi_offsets = beh[active, 1]
+    u_cmd = beh[active, 0] * float(own_ship.U_d)
+    return los_rollout(own_ship.state, own_ship.waypoints, chi_offsets, u_cmd, 0.0,
+                       params.os_lookahead, params.os_R_a, params.os_T_chi, params.os_T_U,
+                       config.dt, n_steps)
+
+
+# ----------------------------------------------------------------------------------------------------------
+# §5 obstacle prediction scenarios
+# ----------------------------------------------------------------------------------------------------------
+def obstacle_initial_state(obstacle: Obstacle) -> np.ndarray:
+    """[x, y, atan2(V_y, V_x), |V|] from the estimate [x, y, V_x, V_y]."""
+    x, y, vx, vy = (float(v) for v in obstacle.state)
+    return np.array([x, y, math.atan2(vy, vx), math.hypot(vx, vy)])
+
+
+def obstacle_path(obstacle: Obstacle, config: PlannerConfig = PlannerConfig()) -> np.ndarray:
+    """The obstacle's nominal path: its waypoints, else a straight line along its velocity (§5)."""
+    if obstacle.waypoints is not None:
+        return np.asarray(obstacle.waypoints, dtype=float)
+    x, y, chi, V = obstacle_initial_state(obstacle)
+    length = max(2.0 * V * float(config.T), 1000.0)
+    return np.array([[x, y], [x + length * math.cos(chi), y + length * math.sin(chi)]])
+
+
+def obstacle_scenarios(obstacle: Obstacle, params: Params = Params(),
+                       config: PlannerConfig = PlannerConfig()) -> np.ndarray:
+    """Prediction scenarios ``[n_ps, N + 1, 4]``; scenario j follows the path offset by (j - m) r_ct."""
+    x0 = obstacle_initial_state(obstacle)
+    path = obstacle_path(obstacle, config)
+    n_ps = int(obstacle.n_ps)
+    m = (n_ps - 1) / 2.0
+    n_steps = config.n_steps
+    out = np.empty((n_ps, n_steps + 1, 4))
+    for j in range(n_ps):
+        offset = (j - m) * float(params.r_ct)
+        out[j] = los_rollout(x0, path, 0.0, x0[3], offset, params.ob_lookahead, params.ob_R_a,
+                             params.ob_T_chi, params.ob_T_U, config.dt, n_steps)
+    return out
+
+
+# ----------------------------------------------------------------------------------------------------------
+# §6 obstacle covariance
+# ----------------------------------------------------------------------------------------------------------
+def ou_covariance(t, params: Params = Params()) -> np.ndarray:
+    """Covariance Sigma(t) ``[4, 4]`` of the OU position-velocity process started at zero (§6), order
+    [x, y, V_x, V_y]; P_0 is not included."""
+    t = float(t)
+    gam = (float(params.gamma_x), float(params.gamma_y))
+    sxy = float(params.sigma_xy)
+    Q = ((float(params.sigma_x) ** 2, sxy), (sxy, float(params.sigma_y) ** 2))
+
+    def one_minus_exp_over(g: float) -> float:  # (1 - e^{-g t}) / g
+        return -math.expm1(-g * t) / g
+
+    sig = np.zeros((4, 4))
+    for a in range(2):
+        for b in range(2):
+            ga, gb = gam[a], gam[b]
+            ea, eb, eab = one_minus_exp_over(ga), one_minus_exp_over(gb), one_minus_exp_over(ga + gb)
+            q = Q[a][b]
+            sig[a, b] = q / (ga * gb) * (t - ea - eb + eab)
+            sig[a, 2 + b] = q / ga * (eb - eab)
+            sig[2 + a, 2 + b] = q * eab
+    for a in range(2):
+        for b in range(2):
+            sig[2 + b, a] = sig[a, 2 + b]
+    return sig
+
+
+def obstacle_covariances(obstacle: Obstacle, params: Params = Params(),
+                         config: PlannerConfig = PlannerConfig()) -> np.ndarray:
+    """P_k = P_0 + Sigma(t_k), ``[N + 1, 4, 4]``."""
+    P0 = np.asarray(obstacle.cov, dtype=float)
+    n_steps = config.n_steps
+    return np.stack([P0 + ou_covariance(k * float(config.dt), params) for k in range(n_steps + 1)])
+
+
+# ----------------------------------------------------------------------------------------------------------
+# §7 collision probability
+# ----------------------------------------------------------------------------------------------------------
+def _check_estimator(estimator: str) -> None:
+    if estimator not in ESTIMATORS:
+        raise ValueError(f"estimator must be one of {ESTIMATORS}, got {estimator!r}")
+
+
+def _check_samples(samples, estimator: str, config: PlannerConfig):
+    """The standard-normal table the estimator needs, as float64 (None for quadrature)."""
+    _check_estimator(estimator)
+    if estimator == "quadrature":
+        return None
+    if estimator == "mc":
+        shape = (config.n_samples, 2)
+        what = "(config.n_samples, 2)"
+    else:
+        shape = (config.ce_max_iter + 1, config.n_samples, 2)
+        what = "(config.ce_max_iter + 1, config.n_samples, 2)"
+    if samples is None:
+        raise ValueError(
+            f"samples (a standard normal table of shape {what} = {shape}) is required for estimator "
+            f"{estimator!r}, got None"
+        )
+    arr = np.asarray(samples, dtype=float)
+    if arr.shape != shape:
+        raise ValueError(f"samples must have shape {what} = {shape} for estimator {estimator!r}, got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError("samples must be finite")
+    return arr
+
+
+def _pc_quadrature(p, mu, S, R: float, n_quad: int, quad_span: float) -> float:
+    dx = float(mu[0]) - float(p[0])
+    dy = float(mu[1]) - float(p[1])
+    d = math.hypot(dx, dy)
+    if d == 0.0:
+        ux, uy = 1.0, 0.0
+    else:
+        ux, uy = dx / d, dy / d
+    vx, vy = -uy, ux
+    s00, s01, s10, s11 = float(S[0][0]), float(S[0][1]), float(S[1][0]), float(S[1][1])
+    Suu = ux * (s00 * ux + s01 * uy) + uy * (s10 * ux + s11 * uy)
+    Suv = ux * (s00 * vx + s01 * vy) + uy * (s10 * vx + s11 * vy)
+    Svv = vx * (s00 * vx + s01 * vy) + vy * (s10 * vx + s11 * vy)
+    s_x = math.sqrt(max(Suu, 0.0))
+    a = max(-R, d - quad_span * s_x)
+    b = min(R, d + quad_span * s_x)
+    if a >= b:
+        return 0.0
+    # Suu > 0 here (otherwise a = b = d, or a > b)
+    s = math.sqrt(max(Svv - Suv * Suv / Suu, 0.0))
+    phi_a = math.asin(a / R)
+    phi_b = math.asin(b / R)
+    t_n, w_n = _leggauss(n_quad)
+    half = 0.5 * (phi_b - phi_a)
+    phi = half * t_n + 0.5 * (phi_b + phi_a)
+    xn = R * np.sin(phi)
+    rc = R * np.cos(phi)  # h_n = R cos(phi_n), also the Jacobian R cos(phi_n)
+    mn = (Suv / Suu) * (xn - d)
+    gauss = np.exp(-0.5 * (xn - d) ** 2 / Suu) / math.sqrt(2.0 * math.pi * Suu)
+    chord = np.array([_phi_ratio(h - m, s) - _phi_ratio(-h - m, s) for h, m in zip(rc.tolist(), mn.tolist())])
+    f = gauss * chord * rc
+    val = half * float(np.dot(w_n, f))
+    return min(max(val, 0.0), 1.0)
+
+
+def _pc_mc(p, mu, S, R: float, Z: np.ndarray) -> float:
+    l00, l10, l11 = _chol2(S)
+    xs = float(mu[0]) + l00 * Z[:, 0]
+    ys = float(mu[1]) + l10 * Z[:, 0] + l11 * Z[:, 1]
+    inside = (xs - float(p[0])) ** 2 + (ys - float(p[1])) ** 2 <= R * R
+    return int(np.count_nonzero(inside)) / Z.shape[0]
+
+
+def _inv2(S) -> tuple[float, float, float, float]:
+    """(inverse entries i00, i01, i11, determinant) of a symmetric 2x2 matrix."""
+    a, b, c = float(S[0][0]), float(S[0][1]), float(S[1][1])
+    det = a * c - b * b
+    return c / det, -b / det, a / det, det
+
+
+def _pc_ce(p, mu, S, R: float, Z: np.ndarray, params: Params) -> float:
+    n_iter = Z.shape[0] - 1
+    n_s = Z.shape[1]
+    px, py = float(p[0]), float(p[1])
+    mx, my = float(mu[0]), float(mu[1])
+    R2 = R * R
+    a, b, c = float(S[0][0]), float(S[0][1]), float(S[1][1])
+    det_s = a * c - b * b
+    if not det_s > 0.0:
+        # [degenerate positional covariance: N(x; mu, S) has no density; algorithm.md is silent] -> 0
+        return 0.0
+    i00, i01, i11 = c / det_s, -b / det_s, a / det_s
+    rho, alpha, chi2 = float(params.ce_rho), float(params.ce_alpha), float(params.ce_chi2)
+
+    mu_c = np.array([0.5 * (px + mx), 0.5 * (py + my)])
+    sig_c = np.array([[R2 / 3.0, 0.0], [0.0, R2 / 3.0]])
+
+    def draw(z):
+        l00, l10, l11 = _chol2(sig_c)
+        xs = mu_c[0] + l00 * z[:, 0]
+        ys = mu_c[1] + l10 * z[:, 0] + l11 * z[:, 1]
+        return xs, ys
+
+    for it in range(n_iter):
+        xs, ys = draw(Z[it])
+        in_disc = (xs - px) ** 2 + (ys - py) ** 2 <= R2
+        ex, ey = xs - mx, ys - my
+        maha = ex * ex * i00 + 2.0 * ex * ey * i01 + ey * ey * i11
+        elite = in_disc & (maha <= chi2)
+        n_e = int(np.count_nonzero(elite))
+        if n_e >= rho * n_s:
+            break
+        if n_e < 3:
+            break
+        ex_e, ey_e = xs[elite], ys[elite]
+        me = np.array([ex_e.mean(), ey_e.mean()])
+        cx, cy = ex_e - me[0], ey_e - me[1]
+        sig_e = np.array([[np.dot(cx, cx), np.dot(cx, cy)], [np.dot(cy, cx), np.dot(cy, cy)]]) / n_e
+        mu_c = alpha * me + (1.0 - alpha) * mu_c
+        sig_c = alpha * sig_e + (1.0 - alpha) * sig_c
+
+    xs, ys = draw(Z[n_iter])
+    in_disc = (xs - px) ** 2 + (ys - py) ** 2 <= R2
+    # N(x; mu, S) / N(x; mu_c, Sigma_c) = sqrt(det Sigma_c / det S) exp(-(q_S - q_c) / 2)
+    j00, j01, j11, det_c = _inv2(sig_c)
+    ex, ey = xs - mx, ys - my
+    q_s = ex * ex * i00 + 2.0 * ex * ey * i01 + ey * ey * i11
+    fx, fy = xs - mu_c[0], ys - mu_c[1]
+    q_c = fx * fx * j00 + 2.0 * fx * fy * j01 + fy * fy * j11
+    w = np.where(in_disc, math.sqrt(det_c / det_s) * np.exp(-0.5 * (q_s - q_c)), 0.0)
+    return min(1.0, float(np.sum(w)) / n_s)
+
+
+def _pc_no_shortcut(p, mu, S, R: float, estimator: str, params: Params, config: PlannerConfig,
+                    samples) -> float:
+    if estimator == "quadrature":
+        return _pc_quadrature(p, mu, S, R, config.n_quad, float(config.quad_span))
+    if estimator == "mc":
+        return _pc_mc(p, mu, S, R, samples)
+    return _pc_ce(p, mu, S, R, samples, params)
+
+
+def collision_probability(p, mu, S, R, estimator: str = "quadrature", params: Params = Params(),
+                          config: PlannerConfig = PlannerConfig(), samples=None) -> float:
+    """Probability that N(mu, S) lies in the disc of radius R around p (§7), including the shortcut.
+
+    Args:
+        p: own-ship position (2,).  mu: obstacle mean position (2,).  S: 2x2 positional covariance.
+        R: disc radius d_safe + (l_os + l_i) / 2.
+        estimator: ``"quadrature"``, ``"mc"`` or ``"ce"``.
+        samples: standard normal table, ``(n_samples, 2)`` for mc, ``(ce_max_iter + 1, n_samples, 2)``
+            for ce; ignored for quadrature.
+    """
+    Z = _check_samples(samples, estimator, config)
+    p = np.asarray(p, dtype=float).reshape(2)
+    mu = np.asarray(mu, dtype=float).reshape(2)
+    S = np.asarray(S, dtype=float).reshape(2, 2)
+    R = float(R)
+    d = math.hypot(float(mu[0] - p[0]), float(mu[1] - p[1]))
+    if d > R + float(params.c_sigma) * sigma_max(S):
+        return 0.0
+    return _pc_no_shortcut(p, mu, S, R, estimator, params, config, Z)
+
+
+# ----------------------------------------------------------------------------------------------------------
+# §8 cost terms
+# ----------------------------------------------------------------------------------------------------------
+def _velocities(traj: np.ndarray) -> np.ndarray:
+    return traj[:, 3:4] * np.stack([np.cos(traj[:, 2]), np.sin(traj[:, 2])], axis=1)
+
+
+def collision_cost(own_traj, obs_traj, S_seq, R, zeta, params: Params = Params(),
+                   config: PlannerConfig = PlannerConfig(), samples=None) -> float:
+    """C_s^{l,i} = max_k zeta K_coll |v_obs - v_own|^2 P_k exp(-t_k / T_d) for one (l, i, s) (§8).
+
+    The shortcut mask is computed for all k at once; the probability is then evaluated point by point for
+    the steps that pass it.  ``samples`` must already be validated (see ``evaluate_reference``).
+    """
+    estimator = config.estimator
+    own_traj = np.asarray(own_traj, dtype=float)
+    obs_traj = np.asarray(obs_traj, dtype=float)
+    S_seq = np.asarray(S_seq, dtype=float)
+    R = float(R)
+    dp = obs_traj[:, :2] - own_traj[:, :2]
+    dist = np.sqrt(dp[:, 0] ** 2 + dp[:, 1] ** 2)
+    a, b, c = S_seq[:, 0, 0], S_seq[:, 0, 1], S_seq[:, 1, 1]
+    lam = 0.5 * (a + c) + np.sqrt((0.5 * (a - c)) ** 2 + b * b)
+    smax = np.sqrt(np.maximum(lam, 0.0))
+    passing = np.flatnonzero(dist <= R + float(params.c_sigma) * smax)
+    if passing.size == 0:
+        return 0.0
+    dv = _velocities(obs_traj) - _velocities(own_traj)
+    dv2 = dv[:, 0] ** 2 + dv[:, 1] ** 2
+    scale = float(zeta) * float(params.K_coll)
+    dt, T_d = float(config.dt), float(params.T_d)
+    best = 0.0
+    for k in passing.tolist():
+        pk = _pc_no_shortcut(own_traj[k, :2], obs_traj[k, :2], S_seq[k], R, estimator, params, config,
+                             samples)
+        if pk > 0.0:
+            cost = scale * dv2[k] * pk * math.exp(-(k * dt) / T_d)
+            if cost > best:
+                best = cost
+    return best
+
+
+def colregs_violation(own_traj, obs_traj, params: Params = Params()) -> np.ndarray:
+    """Per-step COLREGS (rules 14/15) violation flags ``[N + 1]`` bool for one (l, i, s) (§8).
+
+    mu_s^{l,i} = ``colregs_violation(...).any()``.
+    """
+    own_traj = np.asarray(own_traj, dtype=float)
+    obs_traj = np.asarray(obs_traj, dtype=float)
+    v0 = _velocities(own_traj)
+    vi = _velocities(obs_traj)
+    dp = obs_traj[:, :2] - own_traj[:, :2]
+    d = np.sqrt(dp[:, 0] ** 2 + dp[:, 1] ** 2)
+    safe_d = np.where(d > 0.0, d, 1.0)
+    L = np.where((d > 0.0)[:, None], dp / safe_d[:, None], 0.0)
+    n0 = np.sqrt(v0[:, 0] ** 2 + v0[:, 1] ** 2)
+    ni = np.sqrt(vi[:, 0] ** 2 + vi[:, 1] ** 2)
+    dot = v0[:, 0] * vi[:, 0] + v0[:, 1] * vi[:, 1]
+    close = d < float(params.d_close)
+    overtaken = (dot > COS_67_5 * n0 * ni) & (ni > n0)
+    chi0 = own_traj[:, 2]
+    starboard = np.cos(chi0) * dp[:, 1] - np.sin(chi0) * dp[:, 0] > 0.0
+    head_on = ((n0 > 0.05) & (dot < -COS_22_5 * n0 * ni)
+               & (v0[:, 0] * L[:, 0] + v0[:, 1] * L[:, 1] > COS_67_5 * n0))
+    crossed = dot < COS_67_5 * n0 * ni
+    return close & starboard & (head_on | (crossed & ~overtaken))
+
+
+def polygon_distances(points, ring) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Distance from each point ``[K, 2]`` to a polygon ring ``[n, 2]`` (0 inside, even-odd rule), the unit
+    vector to the nearest boundary point (zeros inside or at distance 0), and the inside flags."""
+    pts = np.asarray(points, dtype=float).reshape(-1, 2)
+    A = np.asarray(ring, dtype=float)
+    if A.ndim != 2 or A.shape[1] != 2 or A.shape[0] < 3:
+        raise ValueError(f"polygon ring must have shape [n >= 3, 2], got {A.shape}")
+    B = np.roll(A, -1, axis=0)
+    E = B - A
+    L2 = E[:, 0] ** 2 + E[:, 1] ** 2
+    nonzero = L2 > 0.0
+    L2_safe = np.where(nonzero, L2, 1.0)
+    dy_e = B[:, 1] - A[:, 1]
+    dy_safe = np.where(dy_e != 0.0, dy_e, 1.0)
+
+    n_pts = pts.shape[0]
+    dist = np.empty(n_pts)
+    unit = np.zeros((n_pts, 2))
+    inside = np.empty(n_pts, dtype=bool)
+    block = max(1, 2_000_000 // max(1, A.shape[0]))
+    for start in range(0, n_pts, block):
+        P = pts[start:start + block]
+        px, py = P[:, 0:1], P[:, 1:2]                       # [K, 1]
+        rx, ry = px - A[None, :, 0], py - A[None, :, 1]     # [K, n]
+        t = (rx * E[None, :, 0] + ry * E[None, :, 1]) / L2_safe[None, :]
+        t = np.where(nonzero[None, :], np.clip(t, 0.0, 1.0), 0.0)
+        nx = A[None, :, 0] + t * E[None, :, 0]
+        ny = A[None, :, 1] + t * E[None, :, 1]
+        ddx, ddy = nx - px, ny - py
+        dd = np.sqrt(ddx ** 2 + ddy ** 2)
+        jmin = np.argmin(dd, axis=1)
+        rows = np.arange(P.shape[0])
+        dmin = dd[rows, jmin]
+        # even-odd ray crossing
+        straddle = (A[None, :, 1] > py) != (B[None, :, 1] > py)
+        x_cross = A[None, :, 0] + (py - A[None, :, 1]) * (B[None, :, 0] - A[None, :, 0]) / dy_safe[None, :]
+        crossings = np.count_nonzero(straddle & (px < x_cross), axis=1)
+        ins = (crossings % 2) == 1
+        d_out = np.where(ins, 0.0, dmin)
+        has_dir = (~ins) & (dmin > 0.0)
+        safe = np.where(has_dir, dmin, 1.0)
+        ux = np.where(has_dir, ddx[rows, jmin] / safe, 0.0)
+        uy = np.where(has_dir, ddy[rows, jmin] / safe, 0.0)
+        dist[start:start + block] = d_out
+        unit[start:start + block, 0] = ux
+        unit[start:start + block, 1] = uy
+        inside[start:start + block] = ins
+    return dist, unit, inside
+
+
+def polygon_distance(point, ring) -> tuple[float, np.ndarray]:
+    """(distance, unit vector to the nearest boundary point) from one point to a polygon ring (§8).
+
+    The distance is 0 inside (even-odd rule); the unit vector is zeros inside or at distance 0.
+    """
+    d, u, _ = polygon_distances(np.asarray(point, dtype=float).reshape(1, 2), ring)
+    return float(d[0]), u[0].copy()
+
+
+def grounding_cost(traj, ring, params: Params = Params(), config: PlannerConfig = PlannerConfig(),
+                   d_safe=None) -> float:
+    """H_so^{l,j} = max_k g(d_{j,k}, t_k) of one own-ship trajectory ``[N + 1, >= 2]`` and one polygon (§8).
+
+    ``d_safe`` defaults to ``params.d_safe``.
+    """
+    traj = np.asarray(traj, dtype=float)
+    d_safe = float(params.d_safe) if d_safe is None else float(d_safe)
+    d, L, _ = polygon_distances(traj[:, :2], ring)
+    t = np.arange(traj.shape[0]) * float(config.dt)
+    wd = float(params.wind_dir)
+    phi = np.maximum(0.0, math.cos(wd) * L[:, 0] + math.sin(wd) * L[:, 1])
+    A = float(params.G1) + float(params.G2) * phi * float(params.V_w) ** 2
+    G3, G4 = float(params.G3), float(params.G4)
+    g = np.where(d >= d_safe,
+                 A * np.exp(-(G3 * (d - d_safe) + G4 * t)),
+                 A * np.exp(-G4 * t) * (1.0 + G3 * (d_safe - d)))
+    return float(np.max(g))
+
+
+def path_cost(behaviour, last_offsets=(1.0, 0.0), params: Params = Params()) -> float:
+    """H_p of one behaviour ``[n_M, 2]`` given the previously applied offsets (u_last, chi_last) (§8)."""
+    beh = _as_behaviour(behaviour)
+    last = np.asarray(last_offsets, dtype=float).reshape(-1)
+    if last.shape != (2,):
+        raise ValueError(f"last_offsets must be (speed factor, course offset), got shape {last.shape}")
+    K_u, K_du = float(params.K_u), float(params.K_du)
+    K_cp, K_cs = float(params.K_chi_port), float(params.K_chi_stbd)
+    K_dp, K_ds = float(params.K_dchi_port), float(params.K_dchi_stbd)
+
+    def f(u: float, chi: float) -> float:
+        return K_u * (1.0 - u) + (K_cp if chi < 0.0 else K_cs) * chi * chi
+
+    def h(u: float, chi: float, u_prev: float, chi_prev: float) -> float:
+        delta = _wrap(chi - chi_prev)
+        return K_du * abs(u - u_prev) + (K_dp if delta < 0.0 else K_ds) * delta * delta
+
+    n_m = beh.shape[0]
+    us = [float(v) for v in beh[:, 0]]
+    cs = [float(v) for v in beh[:, 1]]
+    first = sum(f(us[m], cs[m]) for m in range(n_m)) + h(us[0], cs[0], float(last[0]), float(last[1]))
+    cost = first / n_m
+    if n_m >= 2:
+        cost += sum(h(us[m], cs[m], us[m - 1], cs[m - 1]) for m in range(1, n_m)) / (n_m - 1)
+    return cost
+
+
+# ----------------------------------------------------------------------------------------------------------
+# Algorithm 2
+# ----------------------------------------------------------------------------------------------------------
+@dataclass
+class ReferenceResult:
+    """Cost breakdown of every behaviour (B behaviours, n_ps_i scenarios of obstacle i, T = N + 1)."""
+
+    total: np.ndarray      # (B,) H^l
+    do: np.ndarray         # (B,) H_do
+    colregs: np.ndarray    # (B,) H_colregs
+    so: np.ndarray         # (B,) H_so
+    path: np.ndarray       # (B,) H_p
+    best: int              # argmin (first index on ties)
+    own_traj: np.ndarray   # (B, N+1, 4) [x, y, chi, U]
+    obs_traj: list         # per obstacle i: (n_ps_i, N+1, 4)
+    obs_cov: list          # per obstacle i: (N+1, 4, 4)
+    C: list                # per obstacle i: (B, n_ps_i) collision cost C_s^{l,i}
+    mu: list               # per obstacle i: (B, n_ps_i) COLREGS indicator (0.0/1.0)
+    so_j: np.ndarray       # (B, n_so) per-polygon grounding cost H_so^{l,j}
+
+
+def evaluate_reference(situation: Situation, behaviours, params: Params = Params(),
+                       config: PlannerConfig = PlannerConfig(), last_offsets=(1.0, 0.0),
+                       samples=None) -> ReferenceResult:
+    """Evaluate the PSB-MPC cost of every behaviour sequentially in float64 (Algorithm 2).
+
+    Args:
+        situation: own-ship, obstacles and grounding polygons.
+        behaviours: ``[B, n_M, 2]`` (speed factor, course offset [rad]).
+        params, config: planner parameters; ``config.dtype`` is ignored (always float64).
+        last_offsets: previously applied (speed factor, course offset), planner state.
+        samples: standard normal table, ``(n_samples, 2)`` for ``mc``, ``(ce_max_iter + 1, n_samples, 2)``
+            for ``ce``; ignored for ``quadrature``.
+    """
+    if not isinstance(situation, Situation):
+        raise ValueError(f"situation must be a psbmpc_jax.Situation, got {type(situation).__name__}")
+    if not isinstance(config, PlannerConfig):
+        raise ValueError(f"config must be a psbmpc_jax.PlannerConfig, got {type(config).__name__}")
+    validate_params(params)
+    beh = validate_behaviours(behaviours)
+    last = np.asarray(last_offsets, dtype=float).reshape(-1)
+    if last.shape != (2,) or not np.all(np.isfinite(last)):
+        raise ValueError(
+            f"last_offsets must be two finite numbers (speed factor, course offset), got {last_offsets!r}"
+        )
+    Z = _check_samples(samples, config.estimator, config)
+
+    own = situation.own_ship
+    obstacles = situation.obstacles
+    polygons = situation.polygons
+    n_b = beh.shape[0]
+    n_steps = config.n_steps
+
+    # obstacle prediction scenarios and covariances, once per solve
+    obs_traj = [obstacle_scenarios(ob, params, config) for ob in obstacles]
+    obs_cov = [obstacle_covariances(ob, params, config) for ob in obstacles]
+    S_pos = [cov[:, 0:2, 0:2].copy() for cov in obs_cov]
+    radii = [float(params.d_safe) + 0.5 * (float(own.length) + float(ob.length)) for ob in obstacles]
+
+    own_traj = np.empty((n_b, n_steps + 1, 4))
+    H_do = np.zeros(n_b)
+    H_col = np.zeros(n_b)
+    H_so = np.zeros(n_b)
+    H_p = np.zeros(n_b)
+    so_j = np.zeros((n_b, len(polygons)))
+    C = [np.zeros((n_b, ob.n_ps)) for ob in obstacles]
+    mu = [np.zeros((n_b, ob.n_ps)) for ob in obstacles]
+    kappa = float(params.kappa)
+
+    for l in range(n_b):
+        traj = ownship_trajectory(own, beh[l], params, config)
+        own_traj[l] = traj
+        H_p[l] = path_cost(beh[l], last, params)
+        for j, ring in enumerate(polygons):
+            so_j[l, j] = grounding_cost(traj, ring, params, config, params.d_safe)
+        H_so[l] = float(np.max(so_j[l])) if len(polygons) else 0.0
+        h_do = 0.0
+        h_col = 0.0
+        for i, ob in enumerate(obstacles):
+            sum_c = 0.0
+            sum_mu = 0.0
+            for s in range(ob.n_ps):
+                c_s = collision_cost(traj, obs_traj[i][s], S_pos[i], radii[i], ob.zeta, params, config, Z)
+                mu_s = 1.0 if bool(np.any(colregs_violation(traj, obs_traj[i][s], params))) else 0.0
+                C[i][l, s] = c_s
+                mu[i][l, s] = mu_s
+                sum_c += float(ob.probs[s]) * c_s
+                sum_mu += float(ob.probs[s]) * mu_s
+            h_do += float(ob.weight) * sum_c
+            h_col += float(ob.weight) * sum_mu
+        H_do[l] = h_do
+        H_col[l] = kappa * h_col
+
+    total = H_do + H_col + H_so + H_p
+    return ReferenceResult(
+        total=total, do=H_do, colregs=H_col, so=H_so, path=H_p, best=int(np.argmin(total)),
+        own_traj=own_traj, obs_traj=obs_traj, obs_cov=obs_cov, C=C, mu=mu, so_j=so_j,
+    )
