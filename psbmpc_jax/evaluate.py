@@ -125,11 +125,10 @@ def _collision_terms(own: Trajectory, obs: Trajectory, cov_stats, radius, zeta_k
     thr_os = rep_s(radius[:, None] + params.c_sigma * smax)                     # [O·S, Tp]
     valid_os = scen_valid.reshape(n_os)
 
-    # dense pass: shortcut mask and COLREGS flags over (B, O·S, Tp)
+    # dense pass: COLREGS flags over every (B, O·S, T) point
     dx = qx[None] - px[:, None]
     dy = qy[None] - py[:, None]
     live = valid_os[None, :, None] & t_valid[None, None, :]
-    active = (dx * dx + dy * dy <= thr_os[None] ** 2) & live
     viol = violation(dx, dy, vx[:, None], vy[:, None], wx[None], wy[None], cos_c[:, None], sin_c[:, None],
                      params.d_close) & live
     mu = jnp.any(viol, axis=-1).astype(dtype)                                  # [B, O·S]
@@ -141,29 +140,36 @@ def _collision_terms(own: Trajectory, obs: Trajectory, cov_stats, radius, zeta_k
 
     zk_os = rep_s(zeta_k)
     if config.pc_layout == "dense":
+        active = (dx * dx + dy * dy <= thr_os[None] ** 2) & live
         o_of = jnp.arange(n_os) // n_s
         c = block_terms(dx, dy, wx[None] - vx[:, None], wy[None] - vy[:, None], sxx[o_of][None],
                         sxy[o_of][None], syy[o_of][None], r_os[None, :, None], zk_os[None, :, None],
                         disc[None, None], active)
         return c, mu, jnp.sum(jnp.any(active.reshape(n_b, n_os, n_blk, tb), axis=-1))
 
-    # compact: (row, block) pairs that hold at least one active point
-    act_rb = jnp.any(active.reshape(n_b, n_os, n_blk, tb), axis=-1).reshape(-1)   # [(B·O·S)·nblk]
-    n_act = jnp.sum(act_rb, dtype=jnp.int32)
-    chunk = config.chunk_rows
-    (idx,) = jnp.nonzero(act_rb, size=act_rb.shape[0], fill_value=0)
-    idx = jnp.concatenate([idx.astype(jnp.int32), jnp.zeros((chunk,), jnp.int32)])
+    # compact: the (row, time-block) pairs holding an active point, per row from its first to its last
+    # such block (one contiguous run of items per row)
     blk3 = lambda a: a.reshape(a.shape[0], n_blk, tb)
     px3, py3, vx3, vy3 = blk3(px), blk3(py), blk3(vx), blk3(vy)
     qx3, qy3, wx3, wy3 = blk3(qx), blk3(qy), blk3(wx), blk3(wy)
     sxx3, sxy3, syy3, thr3 = blk3(sxx), blk3(sxy), blk3(syy), blk3(thr_os)
     disc2, tval2 = disc.reshape(n_blk, tb), t_valid.reshape(n_blk, tb)
+    active = (dx * dx + dy * dy <= thr_os[None] ** 2) & live
+    blk_act = jnp.any(active.reshape(n_b, n_os, n_blk, tb), axis=-1)
+    b_all = jnp.arange(n_blk, dtype=jnp.int32)
+    b_first = jnp.min(jnp.where(blk_act, b_all, n_blk), axis=-1).reshape(-1)
+    b_last = jnp.max(jnp.where(blk_act, b_all, -1), axis=-1).reshape(-1)
+    n_items = jnp.maximum(b_last - b_first + 1, 0).astype(jnp.int32)
+    ends = jnp.cumsum(n_items)
+    total_items = ends[-1]
+    chunk = config.chunk_rows
 
     def body(state):
         c, acc = state
-        items = jax.lax.dynamic_slice(idx, (c * chunk,), (chunk,))
-        ok = c * chunk + jnp.arange(chunk) < n_act
-        blk, row = items % n_blk, items // n_blk
+        q = c * chunk + jnp.arange(chunk, dtype=jnp.int32)
+        ok = q < total_items
+        row = jnp.minimum(jnp.searchsorted(ends, q, side="right"), n_b * n_os - 1).astype(jnp.int32)
+        blk = jnp.where(ok, b_first[row] + q - (ends[row] - n_items[row]), 0)
         os_, l = row % n_os, row // n_os
         o = os_ // n_s
         dx_ = qx3[os_, blk] - px3[l, blk]
@@ -176,8 +182,8 @@ def _collision_terms(own: Trajectory, obs: Trajectory, cov_stats, radius, zeta_k
         return c + 1, acc
 
     acc0 = jnp.zeros((n_b * n_os,), dtype)
-    _, acc = jax.lax.while_loop(lambda s: s[0] * chunk < n_act, body, (jnp.int32(0), acc0))
-    return acc.reshape(n_b, n_os), mu, n_act
+    _, acc = jax.lax.while_loop(lambda s: s[0] * chunk < total_items, body, (jnp.int32(0), acc0))
+    return acc.reshape(n_b, n_os), mu, total_items
 
 
 def evaluate_arrays(sit: SituationArrays, params: Params, samples, config: PlannerConfig) -> Evaluation:

@@ -12,7 +12,7 @@ TWO_PI = 2.0 * math.pi
 
 def wrap_angle(a):
     """Wrap angles to [-pi, pi)."""
-    return jnp.mod(a + math.pi, TWO_PI) - math.pi
+    return a - TWO_PI * jnp.floor((a + math.pi) / TWO_PI)
 
 
 def normal_cdf(x):

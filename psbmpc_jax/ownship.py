@@ -63,6 +63,9 @@ def make_path(wx, wy, n) -> Path:
 
 
 def _take(table, idx):
+    """Per-row lookup ``table[r, idx[r]]``; a single shared row is a plain 1-D gather."""
+    if table.shape[0] == 1:
+        return jnp.take(table[0], idx, mode="clip")
     return jnp.take_along_axis(table, idx[:, None], axis=1)[:, 0]
 
 
@@ -128,8 +131,7 @@ def ownship_rollouts(own_state, path: Path, U_d, offsets, params, n_steps: int, 
     m_of_k = maneuver_index(n_steps, n_m, t_ts, dt)                       # [N]
     chi_off = offsets[:, :, 1].T[m_of_k]                                   # [N, B]
     u_ref = U_d * offsets[:, :, 0].T[m_of_k]                               # [N, B]
-    bpath = Path(*(jnp.broadcast_to(a, (n_b,) + a.shape[1:]) for a in path))
     x0 = jnp.broadcast_to(own_state, (n_b, 4))
     zeros = jnp.zeros((n_b,), own_state.dtype)
-    return los_rollout(x0, bpath, chi_off, u_ref, zeros, params.os_lookahead, params.os_R_a,
+    return los_rollout(x0, path, chi_off, u_ref, zeros, params.os_lookahead, params.os_R_a,
                        params.os_T_chi, params.os_T_U, dt, unroll=unroll)

@@ -110,6 +110,12 @@ class Obstacle:
         object.__setattr__(self, "state", _array(self.state, "obstacle.state", (4,)))
         cov = _array(self.cov, "obstacle.cov", (4, 4))
         _check_psd(cov, "obstacle.cov")
+        pos_eig = np.linalg.eigvalsh(0.5 * (cov[:2, :2] + cov[:2, :2].T))
+        if pos_eig.min() <= 0:
+            raise ValueError(
+                "obstacle.cov positional block cov[:2, :2] must be positive definite (a collision probability "
+                f"needs a spread), got eigenvalues {pos_eig.tolist()}"
+            )
         object.__setattr__(self, "cov", 0.5 * (cov + cov.T))
         object.__setattr__(self, "length", _positive(self.length, "obstacle.length"))
         object.__setattr__(self, "width", _positive(self.width, "obstacle.width"))

@@ -297,6 +297,9 @@ def ou_covariance(t, params: Params = Params()) -> np.ndarray:
             sig[a, b] = q / (ga * gb) * (t - ea - eb + eab)
             sig[a, 2 + b] = q / ga * (eb - eab)
             sig[2 + a, 2 + b] = q * eab
+    # exact symmetry: mirror the (p, p) and (v, v) off-diagonals and the (v, p) block
+    sig[1, 0] = sig[0, 1]
+    sig[3, 2] = sig[2, 3]
     for a in range(2):
         for b in range(2):
             sig[2 + b, a] = sig[a, 2 + b]
@@ -553,44 +556,50 @@ def polygon_distances(points, ring) -> tuple[np.ndarray, np.ndarray, np.ndarray]
     if A.ndim != 2 or A.shape[1] != 2 or A.shape[0] < 3:
         raise ValueError(f"polygon ring must have shape [n >= 3, 2], got {A.shape}")
     B = np.roll(A, -1, axis=0)
-    E = B - A
+    E = B - A                                            # edge vectors b - a
     L2 = E[:, 0] ** 2 + E[:, 1] ** 2
-    nonzero = L2 > 0.0
-    L2_safe = np.where(nonzero, L2, 1.0)
-    dy_e = B[:, 1] - A[:, 1]
-    dy_safe = np.where(dy_e != 0.0, dy_e, 1.0)
+    L2_safe = np.where(L2 > 0.0, L2, 1.0)                # zero-length edge: dot = 0 -> t = 0
+    dy_safe = np.where(E[:, 1] != 0.0, E[:, 1], 1.0)     # only used where the edge straddles p_y
+    Ax, Ay, Ex, Ey, By = A[:, 0], A[:, 1], E[:, 0], E[:, 1], B[:, 1]
 
     n_pts = pts.shape[0]
     dist = np.empty(n_pts)
     unit = np.zeros((n_pts, 2))
     inside = np.empty(n_pts, dtype=bool)
-    block = max(1, 2_000_000 // max(1, A.shape[0]))
+    block = max(1, 65536 // max(1, A.shape[0]))  # cache-sized blocks of points
     for start in range(0, n_pts, block):
         P = pts[start:start + block]
-        px, py = P[:, 0:1], P[:, 1:2]                       # [K, 1]
-        rx, ry = px - A[None, :, 0], py - A[None, :, 1]     # [K, n]
-        t = (rx * E[None, :, 0] + ry * E[None, :, 1]) / L2_safe[None, :]
-        t = np.where(nonzero[None, :], np.clip(t, 0.0, 1.0), 0.0)
-        nx = A[None, :, 0] + t * E[None, :, 0]
-        ny = A[None, :, 1] + t * E[None, :, 1]
-        ddx, ddy = nx - px, ny - py
-        dd = np.sqrt(ddx ** 2 + ddy ** 2)
-        jmin = np.argmin(dd, axis=1)
+        px, py = P[:, 0:1], P[:, 1:2]                    # [K, 1]
         rows = np.arange(P.shape[0])
-        dmin = dd[rows, jmin]
-        # even-odd ray crossing
-        straddle = (A[None, :, 1] > py) != (B[None, :, 1] > py)
-        x_cross = A[None, :, 0] + (py - A[None, :, 1]) * (B[None, :, 0] - A[None, :, 0]) / dy_safe[None, :]
-        crossings = np.count_nonzero(straddle & (px < x_cross), axis=1)
-        ins = (crossings % 2) == 1
-        d_out = np.where(ins, 0.0, dmin)
+        rx = px - Ax                                     # [K, n]  p - a
+        ry = py - Ay
+        # nearest point on each edge: a + t (b - a), t = clip((p - a).(b - a) / |b - a|^2, 0, 1)
+        t = rx * Ex
+        t += ry * Ey
+        t /= L2_safe
+        np.clip(t, 0.0, 1.0, out=t)
+        ddx = t * Ex
+        ddx += Ax
+        ddx -= px                                        # nearest - p
+        ddy = t * Ey
+        ddy += Ay
+        ddy -= py
+        d2 = ddx * ddx
+        d2 += ddy * ddy
+        jmin = np.argmin(d2, axis=1)
+        dmin = np.sqrt(d2[rows, jmin])
+        # even-odd ray crossing: (a_y > p_y) != (b_y > p_y) and p_x < a_x + (p_y - a_y)(b_x - a_x)/(b_y - a_y)
+        straddle = (Ay > py) != (By > py)
+        x_cross = ry * Ex
+        x_cross /= dy_safe
+        x_cross += Ax
+        straddle &= px < x_cross
+        ins = (np.count_nonzero(straddle, axis=1) % 2) == 1
         has_dir = (~ins) & (dmin > 0.0)
         safe = np.where(has_dir, dmin, 1.0)
-        ux = np.where(has_dir, ddx[rows, jmin] / safe, 0.0)
-        uy = np.where(has_dir, ddy[rows, jmin] / safe, 0.0)
-        dist[start:start + block] = d_out
-        unit[start:start + block, 0] = ux
-        unit[start:start + block, 1] = uy
+        dist[start:start + block] = np.where(ins, 0.0, dmin)
+        unit[start:start + block, 0] = np.where(has_dir, ddx[rows, jmin] / safe, 0.0)
+        unit[start:start + block, 1] = np.where(has_dir, ddy[rows, jmin] / safe, 0.0)
         inside[start:start + block] = ins
     return dist, unit, inside
 
