@@ -76,7 +76,12 @@ def pc_quadrature(dx, dy, sxx, sxy, syy, R, n_quad: int = 24, span: float = 6.0)
     m = (s_uv / s_uu)[..., None] * (x - d[..., None])
     dens = jnp.exp(-0.5 * (x - d[..., None]) ** 2 / s_uu[..., None]) / jnp.sqrt(2 * math.pi * s_uu)[..., None]
     s_e = s[..., None]
-    inner = normal_cdf((h - m) / s_e) - normal_cdf((-h - m) / s_e)
+    if dx.dtype == jnp.float64:
+        inner = normal_cdf((h - m) / s_e) - normal_cdf((-h - m) / s_e)
+    else:
+        # float32: XLA's polynomial erf (no exp) is ~3x cheaper than ndtr; absolute error ~1e-7
+        inv = 1.0 / (math.sqrt(2.0) * s_e)
+        inner = 0.5 * (jax.lax.erf((h - m) * inv) + jax.lax.erf((h + m) * inv))
     p = half * jnp.sum(w * dens * inner * h, axis=-1)
     return jnp.where(nonempty, jnp.clip(p, 0.0, 1.0), 0.0)
 
