@@ -106,7 +106,8 @@ def los_rollout(x0, path: Path, chi_offsets, U_cmd, lateral_offset, lookahead, R
         U_new = U + (dt / T_U) * (u_ref - U)
         return (x_new, y_new, chi_new, U_new, z), (x_new, y_new, chi_new, U_new)
 
-    init = (x0[:, 0], x0[:, 1], wrap_angle(x0[:, 2]), x0[:, 3], jnp.zeros(n_rows, jnp.int32))
+    # the initial course is kept as given (not wrapped): +pi and -pi differ in the first Euler step's rounding
+    init = (x0[:, 0], x0[:, 1], x0[:, 2], x0[:, 3], jnp.zeros(n_rows, jnp.int32))
     _, outs = jax.lax.scan(step, init, (chi_offsets, U_cmd), unroll=unroll)
     comps = [jnp.concatenate([i[None], o], axis=0).T for i, o in zip(init[:4], outs)]
     return Trajectory(*comps)

@@ -192,7 +192,7 @@ def unpack(ev: Evaluation, situation: Situation, behaviours: np.ndarray, solve_t
     obs = np.stack([ev.obstacles.x, ev.obstacles.y, ev.obstacles.chi, ev.obstacles.U], axis=-1).astype(float)
     return PlanResult(
         best_index=int(ev.best),
-        offsets=np.asarray(ev.best_offsets, dtype=float),
+        offsets=np.array(behaviours[int(ev.best)], dtype=float),   # exact host values, not dtype-rounded
         costs={term: np.asarray(getattr(ev, term), dtype=float)[:b] for term in COST_TERMS},
         collision_cost=[np.asarray(ev.C[:b, i, : ob.n_ps], float) for i, ob in enumerate(obstacles)],
         colregs_indicator=[np.asarray(ev.mu[:b, i, : ob.n_ps], float) for i, ob in enumerate(obstacles)],
