@@ -49,10 +49,10 @@ class PlannerConfig:
     estimator: str = "quadrature"
     n_samples: int = 500
     ce_max_iter: int = 6
-    n_quad: int = 24
+    n_quad: int = 32
     quad_span: float = 6.0
     dtype: str = "float32"
-    time_block: int = 16
+    time_block: int = 8
     chunk_rows: int = 256
     pc_layout: str = "compact"
 

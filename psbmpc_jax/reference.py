@@ -366,17 +366,20 @@ def _pc_quadrature(p, mu, S, R: float, n_quad: int, quad_span: float) -> float:
         return 0.0
     # Suu > 0 here (otherwise a = b = d, or a > b)
     s = math.sqrt(max(Svv - Suv * Suv / Suu, 0.0))
-    phi_a = math.asin(a / R)
-    phi_b = math.asin(b / R)
+    # half-angle substitution x = 2Ru/(1+u^2), u = x / (R + sqrt(R^2 - x^2))
+    u_a = a / (R + math.sqrt(max(R * R - a * a, 0.0)))
+    u_b = b / (R + math.sqrt(max(R * R - b * b, 0.0)))
     t_n, w_n = _leggauss(n_quad)
-    half = 0.5 * (phi_b - phi_a)
-    phi = half * t_n + 0.5 * (phi_b + phi_a)
-    xn = R * np.sin(phi)
-    rc = R * np.cos(phi)  # h_n = R cos(phi_n), also the Jacobian R cos(phi_n)
+    half = 0.5 * (u_b - u_a)
+    un = half * t_n + 0.5 * (u_b + u_a)
+    qn = 1.0 / (1.0 + un * un)
+    xn = 2.0 * R * un * qn
+    rc = R * (1.0 - un * un) * qn  # h_n, the chord half-width
+    jac = 2.0 * rc * qn            # dx/du
     mn = (Suv / Suu) * (xn - d)
     gauss = np.exp(-0.5 * (xn - d) ** 2 / Suu) / math.sqrt(2.0 * math.pi * Suu)
     chord = np.array([_phi_ratio(h - m, s) - _phi_ratio(-h - m, s) for h, m in zip(rc.tolist(), mn.tolist())])
-    f = gauss * chord * rc
+    f = gauss * chord * jac
     val = half * float(np.dot(w_n, f))
     return min(max(val, 0.0), 1.0)
 

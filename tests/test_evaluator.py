@@ -330,13 +330,14 @@ def test_jax_estimators_match_reference_pointwise():
     z_mc = np.asarray(jax.random.normal(jax.random.key(1), (n, 2), jnp.float64))
     z_ce = np.asarray(jax.random.normal(jax.random.key(2), (7, n, 2), jnp.float64))
     J = lambda a: jnp.asarray(a)
-    q = np.asarray(col.pc_quadrature(J(dx), J(dy), J(sxx), J(sxy), J(syy), J(R)))
+    nq, span = PlannerConfig().n_quad, PlannerConfig().quad_span
+    q = np.asarray(col.pc_quadrature(J(dx), J(dy), J(sxx), J(sxy), J(syy), J(R), nq, span))
     mc = np.asarray(col.pc_mc(J(dx), J(dy), J(sxx), J(sxy), J(syy), J(R), J(z_mc)))
     ce = np.asarray(col.pc_ce(J(dx), J(dy), J(sxx), J(sxy), J(syy), J(R), J(z_ce), p.ce_rho, p.ce_alpha, p.ce_chi2))
     for k in range(len(dx)):
         S = np.array([[sxx[k], sxy[k]], [sxy[k], syy[k]]])
         mu = (dx[k], dy[k])
-        assert q[k] == pytest.approx(ref_mod._pc_quadrature((0, 0), mu, S, R[k], 24, 6.0), rel=1e-9, abs=1e-13)
+        assert q[k] == pytest.approx(ref_mod._pc_quadrature((0, 0), mu, S, R[k], nq, span), rel=1e-9, abs=1e-13)
         assert mc[k] == pytest.approx(ref_mod._pc_mc((0, 0), mu, S, R[k], z_mc), rel=1e-12, abs=1e-12)
         assert ce[k] == pytest.approx(ref_mod._pc_ce((0, 0), mu, S, R[k], z_ce, p), rel=1e-8, abs=1e-12)
     # non-default quadrature nodes / span, CE without refinement iterations and other CE constants
