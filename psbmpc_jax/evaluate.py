@@ -71,7 +71,7 @@ class Evaluation(NamedTuple):
 
     ``best`` index, ``best_offsets [n_M, 2]``; per-behaviour costs ``total, do, colregs, so, path [B]``;
     ``C, mu [B, O, S]`` (collision cost, COLREGS indicator); ``so_j [B, P]``; trajectories ``own``
-    (components ``[B, T]``) and ``obstacles`` (``[O, S, T]``); ``obs_cov [O, T, 4, 4]``;
+    (time-major components ``[T, B]``) and ``obstacles`` (``[T, O, S]``); ``obs_cov [O, T, 4, 4]``;
     ``n_pc_blocks``: number of (row, time block) pairs sent to the collision-probability estimator.
     """
 
@@ -91,20 +91,21 @@ class Evaluation(NamedTuple):
     n_pc_blocks: jax.Array
 
 
-def _pad_time(a, t_pad: int, axis: int = -1):
-    """Pad the time axis at the end by repeating the last sample."""
+def _pad_time(a, t_pad: int):
+    """Pad the (leading) time axis at the end by repeating the last sample."""
     if t_pad == 0:
         return a
-    widths = [(0, 0)] * a.ndim
-    widths[axis] = (0, t_pad)
-    return jnp.pad(a, widths, mode="edge")
+    return jnp.pad(a, [(0, t_pad)] + [(0, 0)] * (a.ndim - 1), mode="edge")
 
 
 def _collision_terms(own: Trajectory, obs: Trajectory, cov_stats, radius, zeta_k, scen_valid, t, params: Params,
                      config: PlannerConfig, samples):
-    """C [B, O·S] and μ [B, O·S] plus the number of estimator blocks."""
-    n_b, n_t = own.x.shape
-    n_o, n_s = obs.x.shape[:2]
+    """C [B, O·S] and μ [B, O·S] plus the number of estimator blocks.
+
+    Everything is time-major ([T, O·S, B]): reductions over time run over the leading axis, so the inner,
+    vectorised axis is always the long behaviour axis (measured 2x faster than [B, O·S, T] on XLA:CPU)."""
+    n_t, n_b = own.x.shape
+    n_o, n_s = obs.x.shape[1:]
     n_os = n_o * n_s
     tb = min(config.time_block, n_t)
     n_blk = -(-n_t // tb)
@@ -112,57 +113,55 @@ def _collision_terms(own: Trajectory, obs: Trajectory, cov_stats, radius, zeta_k
     dtype = own.x.dtype
 
     t_valid = jnp.arange(n_blk * tb) < n_t
-    disc = _pad_time(jnp.exp(-t / params.T_d), t_pad)
-    px, py = _pad_time(own.x, t_pad), _pad_time(own.y, t_pad)
-    cos_c, sin_c = jnp.cos(own.chi), jnp.sin(own.chi)
-    vx, vy = _pad_time(own.U * cos_c, t_pad), _pad_time(own.U * sin_c, t_pad)
-    cos_c, sin_c = _pad_time(cos_c, t_pad), _pad_time(sin_c, t_pad)
-    flat = lambda a: _pad_time(a.reshape(n_os, n_t), t_pad)
+    disc = _pad_time(jnp.exp(-t / params.T_d), t_pad)                          # [Tp]
+    px, py = _pad_time(own.x, t_pad), _pad_time(own.y, t_pad)                   # [Tp, B]
+    vx, vy = _pad_time(own.vx, t_pad), _pad_time(own.vy, t_pad)
+    cos_c, sin_c = _pad_time(own.cos_chi, t_pad), _pad_time(own.sin_chi, t_pad)
+    flat = lambda a: _pad_time(a.reshape(n_t, n_os), t_pad)                     # [Tp, O·S]
     qx, qy, wx, wy = flat(obs.x), flat(obs.y), flat(obs.vx), flat(obs.vy)
-    sxx, sxy, syy, smax = (_pad_time(c, t_pad) for c in cov_stats)             # [O, Tp]
-    rep_s = lambda a: jnp.repeat(a, n_s, axis=0)                                # [O, ...] -> [O·S, ...]
+    sxx, sxy, syy, smax = (_pad_time(c.T, t_pad) for c in cov_stats)           # [Tp, O]
+    rep_s = lambda a: jnp.repeat(a, n_s, axis=-1)                               # [..., O] -> [..., O·S]
     r_os = rep_s(radius)                                                        # [O·S]
-    thr_os = rep_s(radius[:, None] + params.c_sigma * smax)                     # [O·S, Tp]
+    thr_os = rep_s(radius[None, :] + params.c_sigma * smax)                     # [Tp, O·S]
     valid_os = scen_valid.reshape(n_os)
-
-    # dense pass: COLREGS flags over every (B, O·S, T) point
-    dx = qx[None] - px[:, None]
-    dy = qy[None] - py[:, None]
-    live = valid_os[None, :, None] & t_valid[None, None, :]
-    viol = violation(dx, dy, vx[:, None], vy[:, None], wx[None], wy[None], cos_c[:, None], sin_c[:, None],
-                     params.d_close) & live
-    mu = jnp.any(viol, axis=-1).astype(dtype)                                  # [B, O·S]
-
-    def block_terms(dx, dy, dvx, dvy, s_xx, s_xy, s_yy, rad, zk, dsc, act):
-        p = collision_probability(dx, dy, s_xx, s_xy, s_yy, rad, params, config, samples)
-        term = zk * (dvx * dvx + dvy * dvy) * p * dsc
-        return jnp.max(jnp.where(act, term, 0.0), axis=-1)
-
     zk_os = rep_s(zeta_k)
-    if config.pc_layout == "dense":
-        active = (dx * dx + dy * dy <= thr_os[None] ** 2) & live
-        o_of = jnp.arange(n_os) // n_s
-        c = block_terms(dx, dy, wx[None] - vx[:, None], wy[None] - vy[:, None], sxx[o_of][None],
-                        sxy[o_of][None], syy[o_of][None], r_os[None, :, None], zk_os[None, :, None],
-                        disc[None, None], active)
-        return c, mu, jnp.sum(jnp.any(active.reshape(n_b, n_os, n_blk, tb), axis=-1))
 
-    # compact: the (row, time-block) pairs holding an active point, per row from its first to its last
-    # such block (one contiguous run of items per row)
-    blk3 = lambda a: a.reshape(a.shape[0], n_blk, tb)
-    px3, py3, vx3, vy3 = blk3(px), blk3(py), blk3(vx), blk3(vy)
-    qx3, qy3, wx3, wy3 = blk3(qx), blk3(qy), blk3(wx), blk3(wy)
-    sxx3, sxy3, syy3, thr3 = blk3(sxx), blk3(sxy), blk3(syy), blk3(thr_os)
-    disc2, tval2 = disc.reshape(n_blk, tb), t_valid.reshape(n_blk, tb)
-    active = (dx * dx + dy * dy <= thr_os[None] ** 2) & live
-    blk_act = jnp.any(active.reshape(n_b, n_os, n_blk, tb), axis=-1)
-    b_all = jnp.arange(n_blk, dtype=jnp.int32)
-    b_first = jnp.min(jnp.where(blk_act, b_all, n_blk), axis=-1).reshape(-1)
-    b_last = jnp.max(jnp.where(blk_act, b_all, -1), axis=-1).reshape(-1)
+    # dense pass over every (T, O·S, B) point: COLREGS flags and the sigma shortcut
+    dx = qx[:, :, None] - px[:, None, :]
+    dy = qy[:, :, None] - py[:, None, :]
+    live = t_valid[:, None, None] & valid_os[None, :, None]
+    viol = violation(dx, dy, vx[:, None], vy[:, None], wx[:, :, None], wy[:, :, None], cos_c[:, None],
+                     sin_c[:, None], params.d_close) & live
+    mu = jnp.any(viol, axis=0).astype(dtype).T                                  # [B, O·S]
+    active = (dx * dx + dy * dy <= (thr_os ** 2)[:, :, None]) & live
+
+    def point_terms(dx, dy, dvx, dvy, s_xx, s_xy, s_yy, rad, zk, dsc, act):
+        p = collision_probability(dx, dy, s_xx, s_xy, s_yy, rad, params, config, samples)
+        return jnp.where(act, zk * (dvx * dvx + dvy * dvy) * p * dsc, 0.0)
+
+    if config.pc_layout == "dense":
+        o_of = jnp.arange(n_os) // n_s
+        terms = point_terms(dx, dy, wx[:, :, None] - vx[:, None], wy[:, :, None] - vy[:, None],
+                            sxx[:, o_of, None], sxy[:, o_of, None], syy[:, o_of, None], r_os[None, :, None],
+                            zk_os[None, :, None], disc[:, None, None], active)
+        n_blocks = jnp.sum(jnp.any(active.reshape(n_blk, tb, n_os, n_b), axis=1))
+        return jnp.max(terms, axis=0).T, mu, n_blocks
+
+    # compact: the (row, time-block) pairs holding an active point, per row (o·s, l) from its first to its
+    # last such block (one contiguous run of items per row), enumerated by a cumsum over the rows
+    blk_act = jnp.any(active.reshape(n_blk, tb, n_os, n_b), axis=1)             # [nblk, O·S, B]
+    b_all = jnp.arange(n_blk, dtype=jnp.int32)[:, None, None]
+    b_first = jnp.min(jnp.where(blk_act, b_all, n_blk), axis=0).reshape(-1)     # rows ordered (o·s, l)
+    b_last = jnp.max(jnp.where(blk_act, b_all, -1), axis=0).reshape(-1)
     n_items = jnp.maximum(b_last - b_first + 1, 0).astype(jnp.int32)
     ends = jnp.cumsum(n_items)
     total_items = ends[-1]
     chunk = config.chunk_rows
+    blk3 = lambda a: a.reshape((n_blk, tb) + a.shape[1:])                       # [nblk, tb, ...]
+    px3, py3, vx3, vy3 = blk3(px), blk3(py), blk3(vx), blk3(vy)
+    qx3, qy3, wx3, wy3, thr3 = blk3(qx), blk3(qy), blk3(wx), blk3(wy), blk3(thr_os)
+    sxx3, sxy3, syy3 = blk3(sxx), blk3(sxy), blk3(syy)
+    disc2, tval2 = disc.reshape(n_blk, tb), t_valid.reshape(n_blk, tb)
 
     def body(state):
         c, acc = state
@@ -170,20 +169,23 @@ def _collision_terms(own: Trajectory, obs: Trajectory, cov_stats, radius, zeta_k
         ok = q < total_items
         row = jnp.minimum(jnp.searchsorted(ends, q, side="right"), n_b * n_os - 1).astype(jnp.int32)
         blk = jnp.where(ok, b_first[row] + q - (ends[row] - n_items[row]), 0)
-        os_, l = row % n_os, row // n_os
+        os_, l = row // n_b, row % n_b
         o = os_ // n_s
-        dx_ = qx3[os_, blk] - px3[l, blk]
-        dy_ = qy3[os_, blk] - py3[l, blk]
-        act = (dx_ * dx_ + dy_ * dy_ <= thr3[os_, blk] ** 2) & tval2[blk] & ok[:, None]
-        rmax = block_terms(dx_, dy_, wx3[os_, blk] - vx3[l, blk], wy3[os_, blk] - vy3[l, blk],
-                           sxx3[o, blk], sxy3[o, blk], syy3[o, blk], r_os[os_][:, None],
-                           zk_os[os_][:, None], disc2[blk], act)
-        acc = acc.at[row].max(jnp.where(ok, rmax, 0.0))
+        g = lambda a3, idx: a3[blk, :, idx]                                     # [chunk, tb] windows
+        dx_ = g(qx3, os_) - g(px3, l)
+        dy_ = g(qy3, os_) - g(py3, l)
+        act = (dx_ * dx_ + dy_ * dy_ <= g(thr3, os_) ** 2) & tval2[blk] & ok[:, None]
+        # materialise the gathered windows once: otherwise XLA may fuse the gathers into the estimator's
+        # per-sample loop and redo them for every sample (measured 3x slower for mc)
+        win = jax.lax.optimization_barrier(
+            (dx_, dy_, g(wx3, os_) - g(vx3, l), g(wy3, os_) - g(vy3, l), g(sxx3, o), g(sxy3, o), g(syy3, o), act))
+        terms = point_terms(*win[:7], r_os[os_][:, None], zk_os[os_][:, None], disc2[blk], win[7])
+        acc = acc.at[row].max(jnp.where(ok, jnp.max(terms, axis=-1), 0.0))
         return c + 1, acc
 
-    acc0 = jnp.zeros((n_b * n_os,), dtype)
+    acc0 = jnp.zeros((n_os * n_b,), dtype)
     _, acc = jax.lax.while_loop(lambda s: s[0] * chunk < total_items, body, (jnp.int32(0), acc0))
-    return acc.reshape(n_b, n_os), mu, total_items
+    return acc.reshape(n_os, n_b).T, mu, total_items
 
 
 def evaluate_arrays(sit: SituationArrays, params: Params, samples, config: PlannerConfig) -> Evaluation:

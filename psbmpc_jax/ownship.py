@@ -2,8 +2,9 @@
 
 The same follower predicts the own-ship under every control behaviour (kernel 1) and every obstacle
 prediction scenario.  Rows are independent: axis R is B behaviours for the own-ship, O*S for obstacles.
-Trajectories are returned as a :class:`Trajectory` of component arrays ``[R, N+1]`` (structure of arrays:
-the collision kernel reads x, y, vx, vy separately).
+Trajectories are returned time-major, as a :class:`Trajectory` of component arrays ``[N+1, R]``
+(structure of arrays: the collision kernel reads x, y, vx, vy separately, and reduces over time along the
+leading axis).
 """
 
 from __future__ import annotations
@@ -32,24 +33,27 @@ class Path(NamedTuple):
 
 
 class Trajectory(NamedTuple):
-    """Predicted states, each ``[R, N+1]``: position x, y, course chi, speed U."""
+    """Predicted states, each time-major ``[N+1, R]``: position x, y, course chi, speed U, and cos/sin of the course
+    (computed by the rollout anyway; the collision and COLREGS kernels reuse them)."""
 
     x: jax.Array
     y: jax.Array
     chi: jax.Array
     U: jax.Array
+    cos_chi: jax.Array
+    sin_chi: jax.Array
 
     @property
     def vx(self):
-        return self.U * jnp.cos(self.chi)
+        return self.U * self.cos_chi
 
     @property
     def vy(self):
-        return self.U * jnp.sin(self.chi)
+        return self.U * self.sin_chi
 
     def stacked(self):
-        """``[R, N+1, 4]`` array of ``[x, y, chi, U]``."""
-        return jnp.stack([self.x, self.y, self.chi, self.U], axis=-1)
+        """``[R, N+1, 4]`` array of ``[x, y, chi, U]`` (row-major, as users expect)."""
+        return jnp.stack([self.x.T, self.y.T, self.chi.T, self.U.T], axis=-1)
 
 
 def make_path(wx, wy, n) -> Path:
@@ -100,17 +104,19 @@ def los_rollout(x0, path: Path, chi_offsets, U_cmd, lateral_offset, lookahead, R
         chi_los = _take(path.alpha, zi) + jnp.where(
             z <= last_seg, jnp.arctan(-(e - lateral_offset) / lookahead), 0.0)
         chi_cmd = chi_los + chi_off
-        x_new = x + dt * U * jnp.cos(chi)
-        y_new = y + dt * U * jnp.sin(chi)
+        c, s = jnp.cos(chi), jnp.sin(chi)
+        x_new = x + dt * U * c
+        y_new = y + dt * U * s
         chi_new = wrap_angle(chi + (dt / T_chi) * wrap_angle(chi_cmd - chi))
         U_new = U + (dt / T_U) * (u_ref - U)
-        return (x_new, y_new, chi_new, U_new, z), (x_new, y_new, chi_new, U_new)
+        # emit the state *before* the update: N+1 steps give states 0..N without a concatenate
+        return (x_new, y_new, chi_new, U_new, z), (x, y, chi, U, c, s)
 
     # the initial course is kept as given (not wrapped): +pi and -pi differ in the first Euler step's rounding
     init = (x0[:, 0], x0[:, 1], x0[:, 2], x0[:, 3], jnp.zeros(n_rows, jnp.int32))
-    _, outs = jax.lax.scan(step, init, (chi_offsets, U_cmd), unroll=unroll)
-    comps = [jnp.concatenate([i[None], o], axis=0).T for i, o in zip(init[:4], outs)]
-    return Trajectory(*comps)
+    xs = (jnp.concatenate([chi_offsets, chi_offsets[-1:]]), jnp.concatenate([U_cmd, U_cmd[-1:]]))
+    _, outs = jax.lax.scan(step, init, xs, unroll=unroll)      # one extra (discarded) update at the end
+    return Trajectory(*outs)
 
 
 def maneuver_index(n_steps: int, n_m: int, t_ts, dt):

@@ -53,7 +53,7 @@ class PlannerConfig:
     quad_span: float = 6.0
     dtype: str = "float32"
     time_block: int = 8
-    chunk_rows: int = 256
+    chunk_rows: int = 512
     pc_layout: str = "compact"
 
     def __post_init__(self) -> None:

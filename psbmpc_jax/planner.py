@@ -188,8 +188,10 @@ def unpack(ev: Evaluation, situation: Situation, behaviours: np.ndarray, solve_t
     ev = jax.device_get(ev)
     b = len(behaviours)
     obstacles = situation.obstacles
-    own = np.stack([ev.own.x, ev.own.y, ev.own.chi, ev.own.U], axis=-1)[:b].astype(float)
-    obs = np.stack([ev.obstacles.x, ev.obstacles.y, ev.obstacles.chi, ev.obstacles.U], axis=-1).astype(float)
+    # device trajectories are time-major ([T, B] and [T, O, S]); results are row-major
+    own = np.stack([ev.own.x, ev.own.y, ev.own.chi, ev.own.U], axis=-1).swapaxes(0, 1)[:b].astype(float)
+    obs = np.moveaxis(np.stack([ev.obstacles.x, ev.obstacles.y, ev.obstacles.chi, ev.obstacles.U], axis=-1),
+                      0, 2).astype(float)
     return PlanResult(
         best_index=int(ev.best),
         offsets=np.array(behaviours[int(ev.best)], dtype=float),   # exact host values, not dtype-rounded

@@ -50,7 +50,7 @@ def polygon_distance(px, py, ring, n):
 
 
 def grounding_costs(px, py, t, vertices, n_vertices, poly_mask, params):
-    """H_so^{l,j} for every polygon: own positions ``px, py [B, T]``, times ``t [T]`` -> ``[P, B]``.
+    """H_so^{l,j} for every polygon: own positions ``px, py [T, B]`` (time-major), times ``t [T]`` -> ``[P, B]``.
 
     Padding polygons (``poly_mask`` False) cost 0."""
     wx, wy = jnp.cos(params.wind_dir), jnp.sin(params.wind_dir)
@@ -61,8 +61,8 @@ def grounding_costs(px, py, t, vertices, n_vertices, poly_mask, params):
         dpos = d > 0
         dd = jnp.where(dpos, d, 1.0)
         phi = jnp.where(dpos, jnp.maximum(0.0, (wx * ex + wy * ey) / dd), 0.0)
-        g = grounding_g(d, t[None, :], phi, params)
-        return carry, jnp.where(valid, jnp.max(g, axis=1), 0.0)
+        g = grounding_g(d, t[:, None], phi, params)
+        return carry, jnp.where(valid, jnp.max(g, axis=0), 0.0)
 
     _, h = jax.lax.scan(one, None, (vertices, n_vertices, poly_mask))
     return h
