@@ -37,7 +37,9 @@ class SituationArrays(NamedTuple):
     ``own_length``.  Obstacles (padded to O): ``obs_state [O, 4]``, ``obs_cov [O, 4, 4]``,
     ``obs_length [O]``, routes ``obs_wx, obs_wy [O, Wo]`` with ``obs_n [O]``, ``obs_n_ps [O]``,
     ``obs_probs [O, S]`` (0 in padding), ``obs_weight [O]``, ``obs_zeta [O]``, ``obs_mask [O]``.
-    Polygons: ``poly_vertices [P, V, 2]``, ``poly_n [P]``, ``poly_mask [P]``.  Behaviours:
+    Polygons: ``poly_vertices [P, V, 2]``, ``poly_next [P, V]`` (index of the next vertex of the same ring: a
+    polygon may hold several rings back to back, outer ring and holes, combined with the even-odd rule),
+    ``poly_n [P]`` (valid vertex slots = edges), ``poly_mask [P]``.  Behaviours:
     ``behaviours [B, n_M, 2]``, ``beh_mask [B]``.  Planner state: ``last_offsets [2]``.
     """
 
@@ -59,6 +61,7 @@ class SituationArrays(NamedTuple):
     obs_zeta: jax.Array
     obs_mask: jax.Array
     poly_vertices: jax.Array
+    poly_next: jax.Array
     poly_n: jax.Array
     poly_mask: jax.Array
     behaviours: jax.Array
@@ -214,7 +217,8 @@ def evaluate_arrays(sit: SituationArrays, params: Params, samples, config: Plann
                                                  config, samples)
     c = c_flat.reshape(-1, n_o, n_s)
     mu = mu_flat.reshape(-1, n_o, n_s)
-    so_j = grounding_costs(own.x, own.y, t, sit.poly_vertices, sit.poly_n, sit.poly_mask, params).T  # [B, P]
+    so_j = grounding_costs(own.x, own.y, t, sit.poly_vertices, sit.poly_next, sit.poly_n, sit.poly_mask,
+                           params).T                                                        # [B, P]
 
     # reductions (15), (11), (10), (13), (9) and the argmin
     wp = (sit.obs_weight * sit.obs_mask)[:, None] * sit.obs_probs                 # [O, S]

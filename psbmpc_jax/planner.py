@@ -20,7 +20,7 @@ from .behaviours import paper_behaviours, validate_behaviours
 from .costs.collision import standard_normal_table
 from .evaluate import Evaluation, SituationArrays, evaluate
 from .params import Params, PlannerConfig, params_as_arrays, validate_params
-from .problem import Situation
+from .problem import Situation, polygon_rings
 
 COST_TERMS = ("total", "do", "colregs", "so", "path")
 
@@ -148,14 +148,22 @@ def pack_situation(situation: Situation, behaviours: np.ndarray, state: PlannerS
         obs_probs[i, : ob.n_ps] = ob.probs
         obs_weight[i], obs_zeta[i], obs_mask[i] = ob.weight, ob.zeta, True
 
-    polys = situation.polygons
+    polys = [polygon_rings(poly) for poly in situation.polygons]
     p_cap = bucket(len(polys), 0)
-    v_cap = bucket(max([len(p) for p in polys], default=4), 4)
+    v_cap = bucket(max([sum(len(r) for r in rings) for rings in polys], default=4), 4)
     poly_v = np.zeros((p_cap, v_cap, 2))
+    poly_next = np.tile((np.arange(v_cap) + 1) % 3, (p_cap, 1)).astype(np.int32)
     poly_n = np.full(p_cap, 3, dtype=np.int32)
     poly_mask = np.zeros(p_cap, dtype=bool)
-    for j, ring in enumerate(polys):
-        poly_v[j, : len(ring)], poly_n[j], poly_mask[j] = ring, len(ring), True
+    for j, rings in enumerate(polys):
+        start = 0
+        for ring in rings:               # rings back to back; each closes on itself (even-odd over all)
+            n = len(ring)
+            poly_v[j, start:start + n] = ring
+            poly_next[j, start:start + n] = start + (np.arange(n) + 1) % n
+            start += n
+        poly_next[j, start:] = 0
+        poly_n[j], poly_mask[j] = start, True
 
     b = len(behaviours)
     b_cap = bucket_behaviours(b)
@@ -170,7 +178,7 @@ def pack_situation(situation: Situation, behaviours: np.ndarray, state: PlannerS
         obs_state=f(obs_state), obs_cov=f(obs_cov), obs_length=f(obs_length), obs_wx=f(obs_w[..., 0]),
         obs_wy=f(obs_w[..., 1]), obs_n=i32(obs_n), obs_n_ps=i32(obs_n_ps), obs_probs=f(obs_probs),
         obs_weight=f(obs_weight), obs_zeta=f(obs_zeta), obs_mask=jnp.asarray(obs_mask),
-        poly_vertices=f(poly_v), poly_n=i32(poly_n), poly_mask=jnp.asarray(poly_mask),
+        poly_vertices=f(poly_v), poly_next=i32(poly_next), poly_n=i32(poly_n), poly_mask=jnp.asarray(poly_mask),
         behaviours=f(beh), beh_mask=jnp.asarray(beh_mask), last_offsets=f(state.last_offsets),
     )
 

@@ -8,7 +8,8 @@ Frame: NED — x north, y east [m]; courses from north, clockwise positive [rad]
   (waypoints) for route exchange, the number of prediction scenarios, their probabilities, the cost weight
   ``w_i`` and track-loss modifier ``zeta_i``.
 * :class:`Situation` — own-ship, obstacles and grounding polygons (already simplified / range-filtered;
-  each a ring of vertices ``[n, 2]``, implicitly closed).
+  each a ring of vertices ``[n, 2]``, implicitly closed, or a tuple of such rings — outer ring and holes —
+  combined with the even-odd rule).
 
 Every constructor validates its input and raises ``ValueError`` naming the field and what is allowed.
 """
@@ -58,6 +59,25 @@ def _check_psd(P: np.ndarray, name: str) -> None:
     eig = np.linalg.eigvalsh(0.5 * (P + P.T))
     if eig.min() < -1e-9 * max(1.0, eig.max()):
         raise ValueError(f"{name} must be positive semi-definite, got eigenvalues {eig.tolist()}")
+
+
+def _ring(value, name: str) -> np.ndarray:
+    arr = _array(value, name)
+    if arr.ndim != 2 or arr.shape[1] != 2 or arr.shape[0] < 3:
+        raise ValueError(f"{name} must be a ring of shape [n >= 3, 2] (north, east), got {arr.shape}")
+    return arr
+
+
+def _polygon(value, name: str):
+    """A polygon is one ring ``[n, 2]`` or a tuple of rings (outer ring first, then holes)."""
+    if isinstance(value, (list, tuple)) and len(value) > 0 and np.ndim(value[0]) == 2:
+        return tuple(_ring(r, f"{name}[{k}]") for k, r in enumerate(value))
+    return _ring(value, name)
+
+
+def polygon_rings(polygon) -> tuple[np.ndarray, ...]:
+    """The rings of a polygon as stored in :class:`Situation` (a single ring -> a 1-tuple)."""
+    return polygon if isinstance(polygon, tuple) else (polygon,)
 
 
 @dataclass(frozen=True)
@@ -156,10 +176,5 @@ class Situation:
         object.__setattr__(self, "obstacles", obstacles)
         polys = []
         for j, poly in enumerate(self.polygons):
-            arr = _array(poly, f"situation.polygons[{j}]")
-            if arr.ndim != 2 or arr.shape[1] != 2 or arr.shape[0] < 3:
-                raise ValueError(
-                    f"situation.polygons[{j}] must be a ring of shape [n >= 3, 2] (north, east), got {arr.shape}"
-                )
-            polys.append(arr)
+            polys.append(_polygon(poly, f"situation.polygons[{j}]"))
         object.__setattr__(self, "polygons", tuple(polys))

@@ -552,13 +552,20 @@ def colregs_violation(own_traj, obs_traj, params: Params = Params()) -> np.ndarr
 
 
 def polygon_distances(points, ring) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Distance from each point ``[K, 2]`` to a polygon ring ``[n, 2]`` (0 inside, even-odd rule), the unit
+    """Distance from each point ``[K, 2]`` to a polygon — a ring ``[n, 2]`` or a tuple of rings (outer ring and
+    holes) — (0 inside, even-odd rule over all rings), the unit
     vector to the nearest boundary point (zeros inside or at distance 0), and the inside flags."""
     pts = np.asarray(points, dtype=float).reshape(-1, 2)
-    A = np.asarray(ring, dtype=float)
-    if A.ndim != 2 or A.shape[1] != 2 or A.shape[0] < 3:
-        raise ValueError(f"polygon ring must have shape [n >= 3, 2], got {A.shape}")
-    B = np.roll(A, -1, axis=0)
+    rings = ring if isinstance(ring, (list, tuple)) and len(ring) and np.ndim(ring[0]) == 2 else (ring,)
+    As = []
+    for r in rings:
+        R_ = np.asarray(r, dtype=float)
+        if R_.ndim != 2 or R_.shape[1] != 2 or R_.shape[0] < 3:
+            raise ValueError(f"polygon ring must have shape [n >= 3, 2], got {R_.shape}")
+        As.append(R_)
+    # every ring is closed on itself; the even-odd rule over all rings' edges handles holes
+    A = np.concatenate(As)
+    B = np.concatenate([np.roll(R_, -1, axis=0) for R_ in As])
     E = B - A                                            # edge vectors b - a
     L2 = E[:, 0] ** 2 + E[:, 1] ** 2
     L2_safe = np.where(L2 > 0.0, L2, 1.0)                # zero-length edge: dot = 0 -> t = 0

@@ -177,6 +177,8 @@ def pad_arrays(sit: SituationArrays, *, O=None, S=None, W=None, Wo=None, P=None,
     obs_mask = grow(a["obs_mask"], (O,), False)
     poly_vertices = grow(a["poly_vertices"], (P, V, 2), 0.0)
     poly_n, poly_mask = grow(a["poly_n"], (P,), 3), grow(a["poly_mask"], (P,), False)
+    poly_next = grow(a["poly_next"], (P, V), 0)
+    poly_next[p0:, :3] = [1, 2, 0]
     behaviours = grow(a["behaviours"], (B,) + a["behaviours"].shape[1:], 0.0)
     beh_mask = grow(a["beh_mask"], (B,), False)
     for i in range(o0, O):  # neutral padding like pack_situation's (a valid 2-point route)
@@ -200,6 +202,7 @@ def pad_arrays(sit: SituationArrays, *, O=None, S=None, W=None, Wo=None, P=None,
             if not poly_mask[j]:
                 poly_vertices[j, :4] = np.array([[-50.0, -50.0], [-50.0, 50.0], [50.0, 50.0], [50.0, -50.0]]) + [ox, oy]
                 poly_n[j] = 4
+                poly_next[j, :4] = [1, 2, 3, 0]
             poly_vertices[j, poly_n[j]:] = g
         behaviours[~beh_mask] = np.array([1.0, 0.0])
 
@@ -210,7 +213,8 @@ def pad_arrays(sit: SituationArrays, *, O=None, S=None, W=None, Wo=None, P=None,
         U_d=f(a["U_d"]), own_length=f(a["own_length"]), obs_state=f(obs_state), obs_cov=f(obs_cov),
         obs_length=f(obs_length), obs_wx=f(obs_wx), obs_wy=f(obs_wy), obs_n=i32(obs_n), obs_n_ps=i32(obs_n_ps),
         obs_probs=f(obs_probs), obs_weight=f(obs_weight), obs_zeta=f(obs_zeta), obs_mask=jnp.asarray(obs_mask),
-        poly_vertices=f(poly_vertices), poly_n=i32(poly_n), poly_mask=jnp.asarray(poly_mask),
+        poly_vertices=f(poly_vertices), poly_next=i32(poly_next), poly_n=i32(poly_n),
+        poly_mask=jnp.asarray(poly_mask),
         behaviours=f(behaviours), beh_mask=jnp.asarray(beh_mask), last_offsets=f(a["last_offsets"]),
     )
 

@@ -1,8 +1,10 @@
 """Grounding cost (eqs. 15-16, SPEC §7; docs/algorithm.md §8) on padded polygon arrays.
 
-Polygons arrive prepared (simplified, range-filtered) as ``vertices [P, V, 2]`` with ``n_vertices [P]``;
-each is a ring, implicitly closed.  The exact kernel loops over the real edges of each polygon with a
-dynamic trip count (no work on padding), carrying per-(behaviour, time) running minima.
+Polygons arrive prepared (simplified, range-filtered) as ``vertices [P, V, 2]`` with ``next [P, V]`` (the
+next vertex of the same ring: a polygon may hold several rings — outer ring and holes — back to back) and
+``n_vertices [P]`` (valid slots = edges).  The exact kernel loops over the real edges of each polygon with a
+dynamic trip count (no work on padding), carrying per-(time, behaviour) running minima; per-edge constants
+are computed once, outside the loop.
 """
 
 from __future__ import annotations
@@ -19,50 +21,63 @@ def grounding_g(d, t, phi, params):
     return jnp.where(d >= params.d_safe, above, below)
 
 
-def polygon_distance(px, py, ring, n):
-    """Distance from points ``px, py [...]`` to one ring (``ring [V, 2]``, ``n`` valid vertices).
+def edge_table(vertices, nxt):
+    """Per-edge constants ``[..., V]``: a, b - a, 1/|b - a|^2 (0 for a zero-length edge), b_y and the
+    crossing slope (b_x - a_x)/(b_y - a_y) (0 for a horizontal edge, which never straddles)."""
+    ax, ay = vertices[..., 0], vertices[..., 1]
+    b = jnp.take_along_axis(vertices, nxt[..., None], axis=-2)
+    bx, by = b[..., 0], b[..., 1]
+    abx, aby = bx - ax, by - ay
+    l2 = abx * abx + aby * aby
+    inv_l2 = jnp.where(l2 > 0, 1.0 / jnp.where(l2 > 0, l2, 1.0), 0.0)
+    slope = jnp.where(aby != 0, abx / jnp.where(aby != 0, aby, 1.0), 0.0)
+    return jnp.stack([ax, ay, abx, aby, inv_l2, by, slope], axis=-1)
+
+
+def polygon_distance(px, py, edges, n):
+    """Distance from points ``px, py [...]`` to one polygon given by its edge table ``edges [V, 7]`` and
+    ``n`` valid edges.
 
     Returns (d, ex, ey): distance (0 inside, even-odd rule) and the vector from the point to the nearest
-    boundary point (unnormalised)."""
+    boundary point (0 inside)."""
     big = jnp.asarray(jnp.finfo(px.dtype).max, px.dtype)
 
     def body(e, carry):
-        d2, ex, ey, inside = carry
-        a = ring[e]
-        b = ring[jnp.where(e + 1 < n, e + 1, 0)]
-        abx, aby = b[0] - a[0], b[1] - a[1]
-        apx, apy = px - a[0], py - a[1]
-        l2 = abx * abx + aby * aby
-        t = jnp.where(l2 > 0, jnp.clip((apx * abx + apy * aby) / jnp.where(l2 > 0, l2, 1.0), 0.0, 1.0), 0.0)
-        qx, qy = a[0] + t * abx - px, a[1] + t * aby - py
+        d2, best, inside = carry
+        ax, ay, abx, aby, inv_l2, by, slope = (edges[e, i] for i in range(7))
+        apx, apy = px - ax, py - ay
+        t = jnp.clip((apx * abx + apy * aby) * inv_l2, 0.0, 1.0)
+        qx, qy = apx - t * abx, apy - t * aby
         e2 = qx * qx + qy * qy
         closer = e2 < d2
-        d2, ex, ey = jnp.where(closer, e2, d2), jnp.where(closer, qx, ex), jnp.where(closer, qy, ey)
-        straddle = (a[1] > py) != (b[1] > py)
-        dy = jnp.where(straddle, b[1] - a[1], 1.0)
-        cross = straddle & (px < a[0] + (py - a[1]) * (b[0] - a[0]) / dy)
-        return d2, ex, ey, inside ^ cross
+        cross = ((ay > py) != (by > py)) & (px < ax + apy * slope)
+        return jnp.where(closer, e2, d2), jnp.where(closer, e, best), inside ^ cross
 
-    init = (jnp.full(px.shape, big), jnp.zeros_like(px), jnp.zeros_like(px), jnp.zeros(px.shape, bool))
-    d2, ex, ey, inside = jax.lax.fori_loop(0, n, body, init)
+    init = (jnp.full(px.shape, big), jnp.zeros(px.shape, jnp.int32), jnp.zeros(px.shape, bool))
+    d2, best, inside = jax.lax.fori_loop(0, n, body, init)
+    # nearest-point vector from the winning edge, once per point
+    ax, ay, abx, aby, inv_l2 = (edges[best, i] for i in range(5))
+    t = jnp.clip(((px - ax) * abx + (py - ay) * aby) * inv_l2, 0.0, 1.0)
+    ex, ey = ax + t * abx - px, ay + t * aby - py
     d = jnp.where(inside, 0.0, jnp.sqrt(d2))
     return d, jnp.where(inside, 0.0, ex), jnp.where(inside, 0.0, ey)
 
 
-def grounding_costs(px, py, t, vertices, n_vertices, poly_mask, params):
+def grounding_costs(px, py, t, vertices, nxt, n_vertices, poly_mask, params):
     """H_so^{l,j} for every polygon: own positions ``px, py [T, B]`` (time-major), times ``t [T]`` -> ``[P, B]``.
 
     Padding polygons (``poly_mask`` False) cost 0."""
     wx, wy = jnp.cos(params.wind_dir), jnp.sin(params.wind_dir)
+    tables = edge_table(vertices, nxt)                                          # [P, V, 7]
 
     def one(carry, poly):
-        ring, n, valid = poly
-        d, ex, ey = polygon_distance(px, py, ring, n)
+        edges, n, valid = poly
+        d, ex, ey = polygon_distance(px, py, edges, n)
         dpos = d > 0
         dd = jnp.where(dpos, d, 1.0)
         phi = jnp.where(dpos, jnp.maximum(0.0, (wx * ex + wy * ey) / dd), 0.0)
         g = grounding_g(d, t[:, None], phi, params)
         return carry, jnp.where(valid, jnp.max(g, axis=0), 0.0)
 
-    _, h = jax.lax.scan(one, None, (vertices, n_vertices, poly_mask))
+    _, h = jax.lax.scan(one, None, (tables, n_vertices, poly_mask))
     return h
