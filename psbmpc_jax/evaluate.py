@@ -23,7 +23,8 @@ import jax.numpy as jnp
 
 from .costs.collision import collision_probability, shortcut_mask
 from .costs.colregs import violation
-from .costs.grounding import grounding_costs
+from .costs.grounding import grid_grounding_cost, grounding_costs
+from .distance_grid import DistanceGrid
 from .costs.path import path_cost
 from .obstacles import obstacle_covariances, obstacle_scenarios, positional_stats
 from .ownship import Trajectory, make_path, ownship_rollouts
@@ -39,7 +40,9 @@ class SituationArrays(NamedTuple):
     ``obs_probs [O, S]`` (0 in padding), ``obs_weight [O]``, ``obs_zeta [O]``, ``obs_mask [O]``.
     Polygons: ``poly_vertices [P, V, 2]``, ``poly_next [P, V]`` (index of the next vertex of the same ring: a
     polygon may hold several rings back to back, outer ring and holes, combined with the even-odd rule),
-    ``poly_n [P]`` (valid vertex slots = edges), ``poly_mask [P]``.  Behaviours:
+    ``poly_n [P]`` (valid vertex slots = edges), ``poly_mask [P]``.  Fast grounding mode: the distance grid
+    ``grid_values [Gx, Gy]``, ``grid_origin [2]``, ``grid_spacing``, ``grid_margin`` and ``grid_active``
+    (False when there is no land; a 2x2 placeholder in exact mode).  Behaviours:
     ``behaviours [B, n_M, 2]``, ``beh_mask [B]``.  Planner state: ``last_offsets [2]``.
     """
 
@@ -64,6 +67,11 @@ class SituationArrays(NamedTuple):
     poly_next: jax.Array
     poly_n: jax.Array
     poly_mask: jax.Array
+    grid_values: jax.Array
+    grid_origin: jax.Array
+    grid_spacing: jax.Array
+    grid_margin: jax.Array
+    grid_active: jax.Array
     behaviours: jax.Array
     beh_mask: jax.Array
     last_offsets: jax.Array
@@ -73,7 +81,8 @@ class Evaluation(NamedTuple):
     """Everything one solve produces (padded shapes; padded behaviours have cost +inf).
 
     ``best`` index, ``best_offsets [n_M, 2]``; per-behaviour costs ``total, do, colregs, so, path [B]``;
-    ``C, mu [B, O, S]`` (collision cost, COLREGS indicator); ``so_j [B, P]``; trajectories ``own``
+    ``C, mu [B, O, S]`` (collision cost, COLREGS indicator); ``so_j [B, P]`` (``[B, 1]`` in grid mode: the
+    cost of the nearest land); trajectories ``own``
     (time-major components ``[T, B]``) and ``obstacles`` (``[T, O, S]``); ``obs_cov [O, T, 4, 4]``;
     ``n_pc_blocks``: number of (row, time block) pairs sent to the collision-probability estimator.
     """
@@ -217,8 +226,13 @@ def evaluate_arrays(sit: SituationArrays, params: Params, samples, config: Plann
                                                  config, samples)
     c = c_flat.reshape(-1, n_o, n_s)
     mu = mu_flat.reshape(-1, n_o, n_s)
-    so_j = grounding_costs(own.x, own.y, t, sit.poly_vertices, sit.poly_next, sit.poly_n, sit.poly_mask,
-                           params).T                                                        # [B, P]
+    if config.grounding_mode == "grid":
+        grid = DistanceGrid(sit.grid_values, sit.grid_origin, sit.grid_spacing, sit.grid_margin)
+        h_grid = grid_grounding_cost(own.x, own.y, t, grid, params)
+        so_j = jnp.where(sit.grid_active, h_grid, 0.0)[:, None]                  # [B, 1]: nearest land
+    else:
+        so_j = grounding_costs(own.x, own.y, t, sit.poly_vertices, sit.poly_next, sit.poly_n, sit.poly_mask,
+                               params).T                                                    # [B, P]
 
     # reductions (15), (11), (10), (13), (9) and the argmin
     wp = (sit.obs_weight * sit.obs_mask)[:, None] * sit.obs_probs                 # [O, S]

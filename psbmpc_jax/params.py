@@ -42,6 +42,11 @@ class PlannerConfig:
         chunk_rows: (behaviour, obstacle, scenario) rows per collision-probability chunk.
         pc_layout: ``"compact"`` (stream time blocks, evaluate only rows that pass the sigma shortcut)
             or ``"dense"`` (evaluate every (l, i, s, k) point; simple, memory-hungry; for tests and GPUs).
+        grounding_mode: ``"exact"`` (every polygon edge, every point; per-polygon costs) or ``"grid"``
+            (bilinear lookup in a nearest-land distance grid built once per chart; relative error of the
+            grounding cost <= exp(G3·grid_spacing/√2) − 1 without wind; see :mod:`psbmpc_jax.distance_grid`).
+        grid_spacing, grid_margin: grid resolution [m] and the margin around the polygons [m] (outside it the
+            distance is taken as ``grid_margin``).
     """
 
     T: float = 150.0
@@ -55,6 +60,9 @@ class PlannerConfig:
     time_block: int = 8
     chunk_rows: int = 512
     pc_layout: str = "compact"
+    grounding_mode: str = "exact"
+    grid_spacing: float = 0.5
+    grid_margin: float = 100.0
 
     def __post_init__(self) -> None:
         for name in ("T", "dt", "quad_span"):
@@ -71,6 +79,13 @@ class PlannerConfig:
             raise ValueError(f"PlannerConfig.estimator must be one of {ESTIMATORS}, got {self.estimator!r}")
         if self.dtype not in DTYPES:
             raise ValueError(f"PlannerConfig.dtype must be one of {DTYPES}, got {self.dtype!r}")
+        if self.grounding_mode not in ("exact", "grid"):
+            raise ValueError(
+                f"PlannerConfig.grounding_mode must be 'exact' or 'grid', got {self.grounding_mode!r}")
+        for name in ("grid_spacing", "grid_margin"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise ValueError(f"PlannerConfig.{name} must be a finite number > 0, got {v!r}")
         if self.pc_layout not in ("compact", "dense"):
             raise ValueError(f"PlannerConfig.pc_layout must be 'compact' or 'dense', got {self.pc_layout!r}")
         for name, lo in (("n_samples", 1), ("ce_max_iter", 0), ("n_quad", 2), ("time_block", 1),

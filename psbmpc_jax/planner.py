@@ -18,6 +18,7 @@ import numpy as np
 
 from .behaviours import paper_behaviours, validate_behaviours
 from .costs.collision import standard_normal_table
+from .distance_grid import DistanceGrid, build_distance_grid, polygons_key
 from .evaluate import Evaluation, SituationArrays, evaluate
 from .params import Params, PlannerConfig, params_as_arrays, validate_params
 from .problem import Situation, polygon_rings
@@ -66,7 +67,7 @@ class PlanResult:
         u_opt, chi_opt: the first maneuver, to apply as U_c = u_opt U_d, chi_c = chi_opt + chi_d.
         costs: per-behaviour cost terms ``{"total", "do", "colregs", "so", "path"} -> [B]``.
         collision_cost, colregs_indicator: per obstacle ``[B, n_ps_i]`` arrays (C_s^{l,i}, mu_s^{l,i}).
-        grounding_per_polygon: ``[B, n_so]``.
+        grounding_per_polygon: ``[B, n_so]`` (``[B, 0]`` in grid mode, which only knows the nearest land).
         own_trajectories: ``[B, N+1, 4]`` (x, y, chi, U); obstacle_trajectories: per obstacle
             ``[n_ps_i, N+1, 4]``.
         n_pc_blocks: (row, time-block) pairs evaluated by the collision-probability estimator.
@@ -106,8 +107,12 @@ class PlanResult:
 
 
 def pack_situation(situation: Situation, behaviours: np.ndarray, state: PlannerState,
-                   config: PlannerConfig) -> SituationArrays:
-    """Validated host objects -> bucketed, padded device arrays (dtype of ``config``)."""
+                   config: PlannerConfig, grid: DistanceGrid | None = None) -> SituationArrays:
+    """Validated host objects -> bucketed, padded device arrays (dtype of ``config``).
+
+    In ``grounding_mode="grid"`` the nearest-land distance grid of ``situation.polygons`` is needed:
+    pass it as ``grid`` (built with :func:`~psbmpc_jax.distance_grid.build_distance_grid`; the
+    :class:`Planner` builds and caches it), otherwise it is built here."""
     if not isinstance(situation, Situation):
         raise ValueError(f"situation must be a psbmpc_jax.Situation, got {type(situation).__name__}")
     dtype = np.dtype(config.dtype)
@@ -172,6 +177,14 @@ def pack_situation(situation: Situation, behaviours: np.ndarray, state: PlannerS
 
     f = lambda a: jnp.asarray(a, dtype)
     i32 = lambda a: jnp.asarray(a, jnp.int32)
+    if config.grounding_mode == "grid" and situation.polygons:
+        if grid is None:
+            grid = build_distance_grid(situation.polygons, config.grid_spacing, config.grid_margin, dtype=dtype)
+        grid_fields = dict(grid_values=f(grid.values), grid_origin=f(grid.origin), grid_spacing=f(grid.spacing),
+                           grid_margin=f(grid.margin), grid_active=jnp.asarray(True))
+    else:  # placeholder (exact mode, or no land at all)
+        grid_fields = dict(grid_values=f(np.zeros((2, 2))), grid_origin=f(np.zeros(2)), grid_spacing=f(1.0),
+                           grid_margin=f(config.grid_margin), grid_active=jnp.asarray(False))
     return SituationArrays(
         own_state=f(own.state), own_wx=f(own_w[..., 0]), own_wy=f(own_w[..., 1]),
         own_n=i32([len(own.waypoints)]), U_d=f(own.U_d), own_length=f(own.length),
@@ -179,6 +192,7 @@ def pack_situation(situation: Situation, behaviours: np.ndarray, state: PlannerS
         obs_wy=f(obs_w[..., 1]), obs_n=i32(obs_n), obs_n_ps=i32(obs_n_ps), obs_probs=f(obs_probs),
         obs_weight=f(obs_weight), obs_zeta=f(obs_zeta), obs_mask=jnp.asarray(obs_mask),
         poly_vertices=f(poly_v), poly_next=i32(poly_next), poly_n=i32(poly_n), poly_mask=jnp.asarray(poly_mask),
+        **grid_fields,
         behaviours=f(beh), beh_mask=jnp.asarray(beh_mask), last_offsets=f(state.last_offsets),
     )
 
@@ -191,8 +205,10 @@ def check_dtype(config: PlannerConfig) -> None:
         )
 
 
-def unpack(ev: Evaluation, situation: Situation, behaviours: np.ndarray, solve_time: float) -> PlanResult:
-    """Device output (padded) -> host :class:`PlanResult` (unpadded)."""
+def unpack(ev: Evaluation, situation: Situation, behaviours: np.ndarray, solve_time: float,
+           per_polygon: bool = True) -> PlanResult:
+    """Device output (padded) -> host :class:`PlanResult` (unpadded).  ``per_polygon=False`` (grid mode):
+    there are no per-polygon grounding costs, ``costs["so"]`` is the cost of the nearest land."""
     ev = jax.device_get(ev)
     b = len(behaviours)
     obstacles = situation.obstacles
@@ -206,7 +222,8 @@ def unpack(ev: Evaluation, situation: Situation, behaviours: np.ndarray, solve_t
         costs={term: np.asarray(getattr(ev, term), dtype=float)[:b] for term in COST_TERMS},
         collision_cost=[np.asarray(ev.C[:b, i, : ob.n_ps], float) for i, ob in enumerate(obstacles)],
         colregs_indicator=[np.asarray(ev.mu[:b, i, : ob.n_ps], float) for i, ob in enumerate(obstacles)],
-        grounding_per_polygon=np.asarray(ev.so_j[:b, : len(situation.polygons)], float),
+        grounding_per_polygon=(np.asarray(ev.so_j[:b, : len(situation.polygons)], float) if per_polygon
+                               else np.zeros((b, 0))),
         own_trajectories=own,
         obstacle_trajectories=[obs[i, : ob.n_ps] for i, ob in enumerate(obstacles)],
         n_pc_blocks=int(ev.n_pc_blocks),
@@ -232,6 +249,15 @@ class Planner:
         self.params = params or Params()
         validate_params(self.params)
         self.behaviours = validate_behaviours(paper_behaviours(2) if behaviours is None else behaviours)
+        self._grids: dict[str, DistanceGrid] = {}
+
+    def distance_grid(self, polygons) -> DistanceGrid:
+        """The nearest-land grid of ``polygons`` for grid mode, built on first use and cached per chart."""
+        key = polygons_key(polygons, self.config.grid_spacing, self.config.grid_margin)
+        if key not in self._grids:
+            self._grids[key] = build_distance_grid(polygons, self.config.grid_spacing, self.config.grid_margin,
+                                                   dtype=np.dtype(self.config.dtype))
+        return self._grids[key]
 
     def init_state(self) -> PlannerState:
         return PlannerState()
@@ -245,7 +271,9 @@ class Planner:
         params = params or self.params
         validate_params(params)
         dtype = np.dtype(self.config.dtype)
-        arrays = pack_situation(situation, self.behaviours, state, self.config)
+        grid = (self.distance_grid(situation.polygons)
+                if self.config.grounding_mode == "grid" and situation.polygons else None)
+        arrays = pack_situation(situation, self.behaviours, state, self.config, grid)
         samples = standard_normal_table(key, self.config, dtype)
         return arrays, params_as_arrays(params, dtype), samples
 
@@ -256,5 +284,6 @@ class Planner:
         t0 = time.perf_counter()
         ev = evaluate(arrays, p, samples, config=self.config)
         jax.block_until_ready(ev)
-        result = unpack(ev, situation, self.behaviours, time.perf_counter() - t0)
+        result = unpack(ev, situation, self.behaviours, time.perf_counter() - t0,
+                        per_polygon=self.config.grounding_mode == "exact")
         return result, PlannerState((result.u_opt, result.chi_opt))

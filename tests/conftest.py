@@ -215,6 +215,8 @@ def pad_arrays(sit: SituationArrays, *, O=None, S=None, W=None, Wo=None, P=None,
         obs_probs=f(obs_probs), obs_weight=f(obs_weight), obs_zeta=f(obs_zeta), obs_mask=jnp.asarray(obs_mask),
         poly_vertices=f(poly_vertices), poly_next=i32(poly_next), poly_n=i32(poly_n),
         poly_mask=jnp.asarray(poly_mask),
+        grid_values=sit.grid_values, grid_origin=sit.grid_origin, grid_spacing=sit.grid_spacing,
+        grid_margin=sit.grid_margin, grid_active=sit.grid_active,
         behaviours=f(behaviours), beh_mask=jnp.asarray(beh_mask), last_offsets=f(a["last_offsets"]),
     )
 
@@ -227,8 +229,8 @@ def fixed_caps(monkeypatch):
 
     original = planner_mod.pack_situation
 
-    def pack_fixed(situation, behaviours, state, config):
-        return pad_arrays(original(situation, behaviours, state, config), **CAPS)
+    def pack_fixed(situation, behaviours, state, config, grid=None):
+        return pad_arrays(original(situation, behaviours, state, config, grid), **CAPS)
 
     monkeypatch.setattr(planner_mod, "pack_situation", pack_fixed)
     return CAPS

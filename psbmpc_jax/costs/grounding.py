@@ -81,3 +81,18 @@ def grounding_costs(px, py, t, vertices, nxt, n_vertices, poly_mask, params):
 
     _, h = jax.lax.scan(one, None, (tables, n_vertices, poly_mask))
     return h
+
+
+def grid_grounding_cost(px, py, t, grid, params):
+    """H_so from a nearest-land distance grid (fast mode): own positions ``px, py [T, B]`` -> ``[B]``.
+
+    The direction to land for the wind term is minus the interpolated distance gradient."""
+    from ..distance_grid import interpolate
+
+    d, gx, gy = interpolate(grid, px, py)
+    gn = jnp.sqrt(gx * gx + gy * gy)
+    ok = (gn > 0) & (d > 0)
+    gs = jnp.where(ok, gn, 1.0)
+    phi = jnp.where(ok, jnp.maximum(0.0, -(jnp.cos(params.wind_dir) * gx + jnp.sin(params.wind_dir) * gy) / gs),
+                    0.0)
+    return jnp.max(grounding_g(d, t[:, None], phi, params), axis=0)
