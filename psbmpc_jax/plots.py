@@ -1,0 +1,139 @@
+"""Plotting (matplotlib is imported only here).
+
+Charts are drawn north up: **east on the horizontal axis, north on the vertical**, equal aspect, metres in
+the chart's local NED frame (the polygons' shapely (x, y) = (north, east) are swapped for drawing).
+"""
+
+from __future__ import annotations
+
+import pathlib
+
+import numpy as np
+
+__all__ = ["plot_chart", "write_rdp_figure"]
+
+
+def _rings(poly):
+    yield np.asarray(poly.exterior.coords)
+    for r in poly.interiors:
+        yield np.asarray(r.coords)
+
+
+def plot_chart(chart, ax=None, simplified=None, *, own_ship=None, d_so=None, land_color="#d9c9a3",
+               edge_color="#6b5a3a", simplified_color="#d62728", show_vertices: bool = False,
+               simplified_vertices: bool = True,
+               label_ids: bool = False, title: str | None = None):
+    """Draw ``chart`` (filled polygons) and, optionally, ``simplified`` (a chart with the same origin, e.g. the
+    RDP result) as an overlay outline with its vertices.
+
+    Args:
+        chart: a :class:`psbmpc_jax.charts.Chart`.
+        ax: matplotlib axes (default: a new figure).
+        simplified: an RDP-simplified chart to overlay (red outline and vertex dots).
+        own_ship: optional local (north, east) position to mark; with ``d_so`` the range circle too.
+        show_vertices: also mark the vertices of ``chart``.
+        simplified_vertices: mark the vertices of ``simplified`` (default True).
+        label_ids: write each polygon's file index at its representative point.
+    Returns the axes.
+    """
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import PathPatch
+    from matplotlib.path import Path
+
+    if ax is None:
+        _, ax = plt.subplots(figsize=(7, 7))
+    for poly, pid in zip(chart.polygons, chart.ids):
+        verts, codes = [], []
+        for ring in _rings(poly):
+            xy = ring[:, ::-1]  # (east, north)
+            verts.append(xy)
+            codes += [Path.MOVETO] + [Path.LINETO] * (len(xy) - 2) + [Path.CLOSEPOLY]
+        ax.add_patch(PathPatch(Path(np.vstack(verts), codes), facecolor=land_color, edgecolor=edge_color,
+                               lw=0.6, zorder=1))
+        if show_vertices:
+            for ring in _rings(poly):
+                ax.plot(ring[:-1, 1], ring[:-1, 0], ".", color="black", ms=3.0, zorder=2)
+        if label_ids:
+            rp = poly.representative_point()
+            ax.annotate(str(pid), (rp.y, rp.x), fontsize=6, ha="center", va="center", zorder=4)
+    if simplified is not None:
+        first = True
+        for poly in simplified.polygons:
+            for ring in _rings(poly):
+                ax.plot(ring[:, 1], ring[:, 0], "-", color=simplified_color, lw=0.9, zorder=3,
+                        label="RDP" if first else None)
+                if simplified_vertices:
+                    ax.plot(ring[:-1, 1], ring[:-1, 0], "o", mec=simplified_color, mfc="none", ms=4.5, mew=0.9,
+                            zorder=3)
+                first = False
+    if own_ship is not None:
+        n, e = own_ship
+        ax.plot([e], [n], "o", color="tab:blue", ms=5, zorder=5, label="own-ship")
+        if d_so is not None:
+            t = np.linspace(0, 2 * np.pi, 256)
+            ax.plot(e + d_so * np.sin(t), n + d_so * np.cos(t), "--", color="tab:blue", lw=0.8, zorder=5,
+                    label=f"d_so = {d_so:g} m")
+    ax.set_aspect("equal")
+    ax.autoscale_view()
+    ax.set_xlabel("east [m]")
+    ax.set_ylabel("north [m]")
+    if title:
+        ax.set_title(title, fontsize=9)
+    return ax
+
+
+def write_rdp_figure(path="docs/figures/trondheim_rdp.png", eps: float = 2.0, *, dpi: int = 130) -> pathlib.Path:
+    """Write the RDP illustration for the shipped Trondheim chart: (a) the whole chart with its RDP result
+    (eps) and the Nidelva own-ship position with the d_so = 200 m circle, (b) the largest polygon (the
+    21 961-vertex land around Nidelva) before/after, (c) a 400 m detail of its river bank showing the
+    vertices.  Returns the path."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    from .charts import nidelva_own_ship_ned, trondheim_chart
+    from .rdp import simplify_chart
+
+    chart = trondheim_chart("psbmpc")
+    simp = simplify_chart(chart, eps, anchor="open")
+    own = nidelva_own_ship_ned(chart)
+    big = int(np.argmax(chart.n_vertices))
+    sub = lambda c, idx: type(c)(tuple(c.polygons[i] for i in idx), c.origin, c.crs, c.source,
+                                 tuple(c.ids[i] for i in idx), tuple(c.layers[i] for i in idx), c.report)
+
+    fig, axes = plt.subplots(1, 3, figsize=(16, 6.2), gridspec_kw=dict(width_ratios=[1.25, 1.0, 1.0]))
+    plot_chart(chart, axes[0], simp, own_ship=own, d_so=200.0, simplified_vertices=False,
+               title=f"Trondheim chart (61 polygons, {chart.total_vertices} vertices) and RDP eps = {eps:g} m "
+                     f"({simp.total_vertices} vertices)")
+    n0, e0 = own
+    axes[0].set_xlim(e0 - 3200, e0 + 2000)
+    axes[0].set_ylim(n0 - 2600, n0 + 1800)
+    axes[0].legend(loc="lower right", fontsize=7)
+
+    pb, ps = sub(chart, [big]), sub(simp, [big])
+    plot_chart(pb, axes[1], ps, simplified_vertices=False, title=f"largest polygon (file index {chart.ids[big]}): "
+                                     f"{chart.n_vertices[big]} -> {simp.n_vertices[big]} vertices")
+
+    # detail: a 400 m window on the river bank of the largest polygon near the own-ship
+    ring = np.asarray(chart.polygons[big].exterior.coords)
+    k = int(np.argmin(np.hypot(ring[:, 0] - (n0 - 700), ring[:, 1] - (e0 - 300))))
+    cn, ce = ring[k]
+    plot_chart(pb, axes[2], ps, show_vertices=True,
+               title=f"detail (400 m): original vertices (black) and RDP eps = {eps:g} m (red circles)")
+    axes[2].set_xlim(ce - 200, ce + 200)
+    axes[2].set_ylim(cn - 200, cn + 200)
+    axes[1].add_patch(matplotlib.patches.Rectangle((ce - 200, cn - 200), 400, 400, fill=False, lw=1.0,
+                                                   color="black", zorder=6))
+    fig.suptitle("psbmpc_jax: Nidelva chart (WGS 84 / UTM 32N, local NED about the 'piren' origin), "
+                 "Ramer-Douglas-Peucker simplification", fontsize=10)
+    fig.tight_layout()
+    out = pathlib.Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=dpi)
+    plt.close(fig)
+    return out
+
+
+if __name__ == "__main__":  # pragma: no cover
+    print(write_rdp_figure())
