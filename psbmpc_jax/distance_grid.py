@@ -70,8 +70,13 @@ def _tile_distance(px, py, tables, counts):
 
 
 def build_distance_grid(polygons, spacing: float = 0.5, margin: float = 100.0,
-                        max_cells: int = 40_000_000, dtype=np.float32) -> DistanceGrid:
+                        max_cells: int = 40_000_000, dtype=np.float32, region=None) -> DistanceGrid:
     """Sample the nearest-polygon distance of ``polygons`` (rings or ring tuples, NED) on a grid.
+
+    ``region``: ``((x_lo, y_lo), (x_hi, y_hi))`` in NED, the area to cover (e.g. everywhere the own-ship can
+    reach within one horizon); default: the polygons' bounding box plus ``margin`` — then every point
+    outside the grid is at least ``margin`` from land and gets d = ``margin``.  With an explicit region the
+    caller guarantees that no evaluated point leaves it (:class:`~psbmpc_jax.planner.Planner` does).
 
     The value at a node is the minimum over polygons of the exact distance (0 inside a polygon, even-odd
     rule over that polygon's rings), so overlapping polygons are handled.
@@ -87,8 +92,13 @@ def build_distance_grid(polygons, spacing: float = 0.5, margin: float = 100.0,
     if not polygons:
         raise ValueError("build_distance_grid needs at least one polygon")
     tables, counts, verts = _edge_tables(polygons, dtype)
-    lo = verts.min(axis=0) - margin
-    hi = verts.max(axis=0) + margin
+    if region is None:
+        lo = verts.min(axis=0) - margin
+        hi = verts.max(axis=0) + margin
+    else:
+        lo, hi = (np.asarray(v, dtype=float).reshape(2) for v in region)
+        if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi)) and np.all(hi > lo)):
+            raise ValueError(f"grid region must be finite ((x_lo, y_lo), (x_hi, y_hi)) with hi > lo, got {region!r}")
     shape = tuple(int(math.ceil((h - l) / spacing)) + 1 for l, h in zip(lo, hi))
     cells = shape[0] * shape[1]
     if cells > max_cells:
@@ -111,7 +121,15 @@ def build_distance_grid(polygons, spacing: float = 0.5, margin: float = 100.0,
                         jnp.asarray(margin, dtype))
 
 
-def polygons_key(polygons, spacing, margin) -> str:
+def reach_region(position, reach: float, snap: float = 100.0):
+    """A grid region containing the disc of radius ``reach`` around ``position``, with its centre snapped
+    to multiples of ``snap`` so that nearby positions share one grid."""
+    c = np.round(np.asarray(position, dtype=float) / snap) * snap
+    half = reach + snap
+    return (tuple(c - half), tuple(c + half))
+
+
+def polygons_key(polygons, spacing, margin, region=None) -> str:
     """Content hash of polygons + grid settings (the planner caches grids by it)."""
     h = hashlib.sha1()
     for poly in polygons:
@@ -119,7 +137,7 @@ def polygons_key(polygons, spacing, margin) -> str:
             h.update(np.ascontiguousarray(ring, dtype=np.float64).tobytes())
             h.update(b"|")
         h.update(b"#")
-    h.update(f"{spacing}/{margin}".encode())
+    h.update(f"{spacing}/{margin}/{region}".encode())
     return h.hexdigest()
 
 

@@ -18,7 +18,7 @@ import numpy as np
 
 from .behaviours import paper_behaviours, validate_behaviours
 from .costs.collision import standard_normal_table
-from .distance_grid import DistanceGrid, build_distance_grid, polygons_key
+from .distance_grid import DistanceGrid, build_distance_grid, polygons_key, reach_region
 from .evaluate import Evaluation, SituationArrays, evaluate
 from .params import Params, PlannerConfig, params_as_arrays, validate_params
 from .problem import Situation, polygon_rings
@@ -251,12 +251,20 @@ class Planner:
         self.behaviours = validate_behaviours(paper_behaviours(2) if behaviours is None else behaviours)
         self._grids: dict[str, DistanceGrid] = {}
 
-    def distance_grid(self, polygons) -> DistanceGrid:
-        """The nearest-land grid of ``polygons`` for grid mode, built on first use and cached per chart."""
-        key = polygons_key(polygons, self.config.grid_spacing, self.config.grid_margin)
+    def distance_grid(self, situation: Situation) -> DistanceGrid:
+        """The nearest-land grid for grid mode, covering everywhere the own-ship can reach in one horizon.
+
+        No predicted position is farther than max(U_0, U_d)·T from the own-ship (speed references never
+        exceed U_d and the speed lag is monotone), so the grid covers that disc; grids are cached per
+        chart and (snapped) region and rebuilt only when the own-ship moves out of them."""
+        own = situation.own_ship
+        reach = max(float(own.state[3]), float(own.U_d)) * self.config.T + 10.0
+        region = reach_region(own.state[:2], reach)
+        key = polygons_key(situation.polygons, self.config.grid_spacing, self.config.grid_margin, region)
         if key not in self._grids:
-            self._grids[key] = build_distance_grid(polygons, self.config.grid_spacing, self.config.grid_margin,
-                                                   dtype=np.dtype(self.config.dtype))
+            self._grids[key] = build_distance_grid(situation.polygons, self.config.grid_spacing,
+                                                   self.config.grid_margin, dtype=np.dtype(self.config.dtype),
+                                                   region=region)
         return self._grids[key]
 
     def init_state(self) -> PlannerState:
@@ -271,7 +279,7 @@ class Planner:
         params = params or self.params
         validate_params(params)
         dtype = np.dtype(self.config.dtype)
-        grid = (self.distance_grid(situation.polygons)
+        grid = (self.distance_grid(situation)
                 if self.config.grounding_mode == "grid" and situation.polygons else None)
         arrays = pack_situation(situation, self.behaviours, state, self.config, grid)
         samples = standard_normal_table(key, self.config, dtype)
