@@ -98,3 +98,78 @@ def test_grid_bad_input():
         build_distance_grid([], 1.0)
     with pytest.raises(ValueError, match="max_cells"):
         build_distance_grid(channel(), spacing=0.01, max_cells=1000)
+
+
+# ---------------------------------------------------------------------------------------- real chart
+@pytest.fixture(scope="module")
+def nidelva_chart():
+    from psbmpc_jax.charts import nidelva_own_ship_ned, trondheim_chart
+    from psbmpc_jax.rdp import simplify_chart
+
+    chart = simplify_chart(trondheim_chart("psbmpc"), 2.0)
+    return chart, np.asarray(nidelva_own_ship_ned(chart), dtype=float)
+
+
+def _water_situations(chart, centre, n, seed):
+    """Random own-ship positions in open water within 150 m of the Nidelva point, random courses, the chart
+    range-filtered to d_so = 200 m around each."""
+    from psbmpc_jax.charts import range_filter, to_ring_sets
+
+    land = shapely.union_all(list(chart.polygons))
+    rng = np.random.default_rng(seed)
+    out = []
+    while len(out) < n:
+        p = centre + rng.uniform(-150, 150, 2)
+        if land.distance(shapely.Point(p)) < 8.0:
+            continue
+        course = rng.uniform(-np.pi, np.pi)
+        near = range_filter(chart, p, 200.0)
+        own = OwnShip([p[0], p[1], course, 2.0], [p, p + 300.0 * np.array([np.cos(course), np.sin(course)])], 2.0)
+        ob = Obstacle([p[0] + 60 * np.cos(course), p[1] + 60 * np.sin(course), -2 * np.cos(course),
+                       -2 * np.sin(course)], np.diag([4.0, 4.0, 0.1, 0.1]), n_ps=3)
+        out.append(Situation(own, (ob,), tuple(to_ring_sets(near.polygons))))
+    return out
+
+
+def test_exact_grounding_matches_reference_on_trondheim_polygons(nidelva_chart):
+    from psbmpc_jax import reference as ref_mod
+
+    chart, centre = nidelva_chart
+    beh = paper_behaviours(1)
+    cfg = PlannerConfig(T=40.0, dt=0.5, dtype="float64")
+    planner = Planner(cfg, behaviours=beh)
+    for sit in _water_situations(chart, centre, 3, seed=1):
+        assert len(sit.polygons) >= 1
+        res, _ = planner.plan(sit)
+        ref = ref_mod.evaluate_reference(sit, beh, Params(), cfg)
+        np.testing.assert_allclose(res.grounding_per_polygon, ref.so_j, rtol=1e-5, atol=1e-12)
+        for term in ("total", "so", "do", "colregs", "path"):
+            np.testing.assert_allclose(res.costs[term], getattr(ref, term), rtol=1e-5, atol=1e-12, err_msg=term)
+        assert res.best_index == ref.best
+
+
+def test_grid_mode_within_bound_on_trondheim_chart(nidelva_chart):
+    chart, centre = nidelva_chart
+    beh = paper_behaviours(1)
+    base = dict(T=60.0, dt=0.5, dtype="float64")
+    bound = relative_error_bound(0.5, Params().G3)
+    for sit in _water_situations(chart, centre, 2, seed=2):
+        exact, _ = Planner(PlannerConfig(**base), behaviours=beh).plan(sit)
+        fast, _ = Planner(PlannerConfig(grounding_mode="grid", **base), behaviours=beh).plan(sit)
+        ratio = fast.costs["so"] / exact.costs["so"]
+        assert np.all(np.abs(ratio - 1) <= bound + 1e-9), (ratio.min(), ratio.max())
+
+
+def test_nidelva_bank_costs_more_than_the_channel():
+    from psbmpc_jax.examples import nidelva_head_on
+
+    sit = nidelva_head_on()
+    sit = Situation(sit.own_ship, (), sit.polygons)       # grounding only
+    beh = paper_behaviours(1)
+    res, _ = Planner(PlannerConfig(T=150.0), behaviours=beh).plan(sit)
+    so = res.costs["so"]
+    deg = np.rad2deg(beh[:, 0, 1])
+    full = beh[:, 0, 0] == 1.0
+    pick = lambda a: so[full & np.isclose(deg, a)][0]
+    # along the river (0 deg, the longest open-water run) is far cheaper than a hard turn into either bank
+    assert pick(-60.0) > 5 * pick(0.0) and pick(60.0) > 5 * pick(0.0)

@@ -12,6 +12,8 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
+from ..numerics import safe_sqrt
+
 
 def grounding_g(d, t, phi, params):
     """g(d, t): exponential above d_safe, linear continuation below (monotone, continuous)."""
@@ -59,7 +61,7 @@ def polygon_distance(px, py, edges, n):
     ax, ay, abx, aby, inv_l2 = (edges[best, i] for i in range(5))
     t = jnp.clip(((px - ax) * abx + (py - ay) * aby) * inv_l2, 0.0, 1.0)
     ex, ey = ax + t * abx - px, ay + t * aby - py
-    d = jnp.where(inside, 0.0, jnp.sqrt(d2))
+    d = jnp.where(inside, 0.0, safe_sqrt(d2))            # gradient-safe on the boundary (d2 = 0)
     return d, jnp.where(inside, 0.0, ex), jnp.where(inside, 0.0, ey)
 
 
