@@ -36,31 +36,47 @@ def edge_table(vertices, nxt):
     return jnp.stack([ax, ay, abx, aby, inv_l2, by, slope], axis=-1)
 
 
-def polygon_distance(px, py, edges, n):
+def polygon_distance(px, py, edges, n, with_direction=True):
     """Distance from points ``px, py [...]`` to one polygon given by its edge table ``edges [V, 7]`` and
     ``n`` valid edges.
 
     Returns (d, ex, ey): distance (0 inside, even-odd rule) and the vector from the point to the nearest
-    boundary point (0 inside)."""
+    boundary point (0 inside).  ``with_direction`` may be a traced boolean: when False the loop does not
+    track the nearest edge (about 15 % less work) and (ex, ey) are zeros."""
     big = jnp.asarray(jnp.finfo(px.dtype).max, px.dtype)
 
-    def body(e, carry):
-        d2, best, inside = carry
+    def edge_geometry(e):
         ax, ay, abx, aby, inv_l2, by, slope = (edges[e, i] for i in range(7))
         apx, apy = px - ax, py - ay
         t = jnp.clip((apx * abx + apy * aby) * inv_l2, 0.0, 1.0)
         qx, qy = apx - t * abx, apy - t * aby
-        e2 = qx * qx + qy * qy
-        closer = e2 < d2
         cross = ((ay > py) != (by > py)) & (px < ax + apy * slope)
+        return qx * qx + qy * qy, cross
+
+    def body_dir(e, carry):
+        d2, best, inside = carry
+        e2, cross = edge_geometry(e)
+        closer = e2 < d2
         return jnp.where(closer, e2, d2), jnp.where(closer, e, best), inside ^ cross
 
-    init = (jnp.full(px.shape, big), jnp.zeros(px.shape, jnp.int32), jnp.zeros(px.shape, bool))
-    d2, best, inside = jax.lax.fori_loop(0, n, body, init)
-    # nearest-point vector from the winning edge, once per point
-    ax, ay, abx, aby, inv_l2 = (edges[best, i] for i in range(5))
-    t = jnp.clip(((px - ax) * abx + (py - ay) * aby) * inv_l2, 0.0, 1.0)
-    ex, ey = ax + t * abx - px, ay + t * aby - py
+    def body_plain(e, carry):
+        d2, inside = carry
+        e2, cross = edge_geometry(e)
+        return jnp.minimum(e2, d2), inside ^ cross
+
+    def run_dir(_):
+        init = (jnp.full(px.shape, big), jnp.zeros(px.shape, jnp.int32), jnp.zeros(px.shape, bool))
+        d2, best, inside = jax.lax.fori_loop(0, n, body_dir, init)
+        # nearest-point vector from the winning edge, once per point
+        ax, ay, abx, aby, inv_l2 = (edges[best, i] for i in range(5))
+        t = jnp.clip(((px - ax) * abx + (py - ay) * aby) * inv_l2, 0.0, 1.0)
+        return d2, inside, ax + t * abx - px, ay + t * aby - py
+
+    def run_plain(_):
+        d2, inside = jax.lax.fori_loop(0, n, body_plain, (jnp.full(px.shape, big), jnp.zeros(px.shape, bool)))
+        return d2, inside, jnp.zeros_like(px), jnp.zeros_like(px)
+
+    d2, inside, ex, ey = jax.lax.cond(with_direction, run_dir, run_plain, None)
     d = jnp.where(inside, 0.0, safe_sqrt(d2))            # gradient-safe on the boundary (d2 = 0)
     return d, jnp.where(inside, 0.0, ex), jnp.where(inside, 0.0, ey)
 
@@ -74,7 +90,8 @@ def grounding_costs(px, py, t, vertices, nxt, n_vertices, poly_mask, params):
 
     def one(carry, poly):
         edges, n, valid = poly
-        d, ex, ey = polygon_distance(px, py, edges, n)
+        # the nearest-point direction only matters for the wind term
+        d, ex, ey = polygon_distance(px, py, edges, n, with_direction=(params.V_w * params.G2) != 0)
         dpos = d > 0
         dd = jnp.where(dpos, d, 1.0)
         phi = jnp.where(dpos, jnp.maximum(0.0, (wx * ex + wy * ey) / dd), 0.0)
