@@ -39,3 +39,14 @@ def test_readme_commands_match_ci():
     # .ci/run runs the same two steps
     assert 'python3 -m pip install -q -e ".[test]"' in ci and "python3 -m pytest -q" in ci
     assert "python3 -m pip install -e . && psbmpc-jax" in text
+
+
+def test_readme_charts_example_runs():
+    blocks = [b for b in _python_blocks() if "psbmpc_jax.charts" in b]
+    assert blocks, "README has no charts example"
+    namespace: dict = {}
+    exec(compile(blocks[0], str(README), "exec"), namespace)  # noqa: S102
+    polygons = namespace["polygons"]
+    assert 1 <= len(polygons) < len(namespace["chart"].polygons)
+    # every ring set is (outer, holes...) with rings of shape [n >= 3, 2]
+    assert all(r.ndim == 2 and r.shape[0] >= 3 and r.shape[1] == 2 for rings in polygons for r in rings)
