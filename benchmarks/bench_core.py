@@ -12,12 +12,8 @@ speed-up.  Results go to ``<out>/core_<device>_<timestamp>.json`` with device, v
 from __future__ import annotations
 
 import argparse
-import datetime as dt
-import json
 import os
-import platform
 import statistics
-import subprocess
 import sys
 import time
 
@@ -32,32 +28,8 @@ from psbmpc_jax.evaluate import evaluate  # noqa: E402
 from psbmpc_jax.examples import paper_head_on  # noqa: E402
 from psbmpc_jax.reference import evaluate_reference  # noqa: E402
 
-
-def _commit() -> str:
-    try:
-        out = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, check=True,
-                             cwd=os.path.dirname(os.path.abspath(__file__)))
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], capture_output=True,
-                               text=True, cwd=os.path.dirname(os.path.abspath(__file__))).stdout.strip()
-        return out.stdout.strip() + ("-dirty" if dirty else "")
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
-
-
-def _jaxlib_version():
-    try:
-        import jaxlib
-
-        return jaxlib.__version__
-    except (ImportError, AttributeError):
-        return None
-
-
-def _stats(times_s):
-    q = statistics.quantiles(times_s, n=4)
-    ms = lambda v: round(v * 1e3, 3)
-    return {"median_ms": ms(statistics.median(times_s)), "min_ms": ms(min(times_s)), "max_ms": ms(max(times_s)),
-            "q1_ms": ms(q[0]), "q3_ms": ms(q[2]), "n": len(times_s)}
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from _common import environment_meta, stats, write_results  # noqa: E402
 
 
 def bench_point(estimator: str, dtype: str, repeats: int, ref_repeats: int, seed: int = 0) -> dict:
@@ -95,7 +67,7 @@ def bench_point(estimator: str, dtype: str, repeats: int, ref_repeats: int, seed
         "config": {k: getattr(config, k) for k in ("n_samples", "n_quad", "time_block", "chunk_rows",
                                                    "pc_layout")},
         "compile_s": round(compile_s, 3),
-        "jax": _stats(times),
+        "jax": stats(times),
         "best": best,
         "n_pc_blocks": int(ev.n_pc_blocks),
     }
@@ -117,16 +89,9 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     if args.repeats < 2:
         ap.error("--repeats must be >= 2")
-    dev = jax.devices()[0]
-    meta = {
-        "benchmark": "core paper-scale solve without polygons (issue: core evaluator)",
-        "situation": "psbmpc_jax.examples.paper_head_on(): 1014 behaviours, 2 obstacles x 5 scenarios",
-        "device_kind": dev.device_kind, "platform": dev.platform, "n_devices": jax.device_count(),
-        "cpu_count": os.cpu_count(), "machine": platform.machine(), "python": platform.python_version(),
-        "jax": jax.__version__, "jaxlib": _jaxlib_version(),
-        "numpy": np.__version__, "commit": _commit(),
-        "date": dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds"),
-    }
+    meta = environment_meta("core paper-scale solve without polygons (issue: core evaluator)",
+                            situation="psbmpc_jax.examples.paper_head_on(): 1014 behaviours, 2 obstacles x 5 "
+                                      "scenarios")
     points = []
     for estimator in args.estimators.split(","):
         for dtype in args.dtypes.split(","):
@@ -137,12 +102,7 @@ def main(argv=None) -> int:
                   f"{p['jax']['median_ms']:.1f} ms (min {p['jax']['min_ms']:.1f}), best {p['best']}; "
                   f"reference {ref.get('median_ms', float('nan')):.0f} ms best {ref.get('best')} "
                   f"-> speed-up x{p.get('speedup_vs_reference', float('nan'))}", flush=True)
-    os.makedirs(args.out, exist_ok=True)
-    stamp = dt.datetime.now(dt.timezone.utc).strftime("%Y%m%dT%H%M%SZ")
-    path = os.path.join(args.out, f"core_{dev.platform}_{stamp}.json")
-    with open(path, "w") as fh:
-        json.dump({"meta": meta, "points": points}, fh, indent=1)
-    print(f"wrote {path}")
+    write_results(args.out, "core", meta, points)
     return 0
 
 

@@ -15,21 +15,19 @@ The grid build time (once per chart) is recorded with each grid point.
 from __future__ import annotations
 
 import argparse
-import datetime as dt
 import json
 import os
 import sys
 import time
 
 import jax
-import numpy as np
 
 from psbmpc_jax import OwnShip, Planner, PlannerConfig, Situation, paper_behaviours
 from psbmpc_jax.evaluate import evaluate
 from psbmpc_jax.examples import nidelva_head_on, nidelva_polygons
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from bench_core import _commit, _jaxlib_version, _stats  # noqa: E402
+from _common import environment_meta, stats, write_results  # noqa: E402
 
 
 def time_solve(situation, config: PlannerConfig, repeats: int, seed: int = 0) -> dict:
@@ -50,7 +48,7 @@ def time_solve(situation, config: PlannerConfig, repeats: int, seed: int = 0) ->
     return {"estimator": config.estimator, "grounding_mode": config.grounding_mode, "n_cbs": 1014,
             "n_do": len(situation.obstacles), "n_so": len(situation.polygons), "n_edges": n_edges,
             "n_ct": 1014 * (len(situation.polygons) + sum(o.n_ps for o in situation.obstacles)),
-            "prepare_s": round(prepare_s, 3), "compile_s": round(compile_s, 3), "jax": _stats(times),
+            "prepare_s": round(prepare_s, 3), "compile_s": round(compile_s, 3), "jax": stats(times),
             "best": int(ev.best)}
 
 
@@ -109,18 +107,9 @@ def main(argv=None) -> int:
             record("fig10", time_solve(standing_still(rings_rdp[:n_so]), PlannerConfig(grounding_mode=mode),
                                        args.repeats))
 
-    dev = jax.devices()[0]
-    meta = {"benchmark": "grounding on the Trondheim chart (issue: charts and anti-grounding)",
-            "device_kind": dev.device_kind, "platform": dev.platform, "cpu_count": os.cpu_count(),
-            "jax": jax.__version__, "jaxlib": _jaxlib_version(), "numpy": np.__version__, "commit": _commit(),
-            "date": dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds"), "dtype": "float32",
-            "T": 150.0, "dt": 0.5}
-    os.makedirs(args.out, exist_ok=True)
-    stamp = dt.datetime.now(dt.timezone.utc).strftime("%Y%m%dT%H%M%SZ")
-    path = os.path.join(args.out, f"grounding_{dev.platform}_{stamp}.json")
-    with open(path, "w") as fh:
-        json.dump({"meta": meta, "points": points}, fh, indent=1)
-    print(f"wrote {path}")
+    meta = environment_meta("grounding on the Trondheim chart (issue: charts and anti-grounding)",
+                            dtype="float32", T=150.0, dt=0.5)
+    write_results(args.out, "grounding", meta, points)
     return 0
 
 

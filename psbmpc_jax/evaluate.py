@@ -21,7 +21,7 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from .costs.collision import collision_probability, shortcut_mask
+from .costs.collision import collision_probability
 from .costs.colregs import violation
 from .costs.grounding import grid_grounding_cost, grounding_costs
 from .distance_grid import DistanceGrid

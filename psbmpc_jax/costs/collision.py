@@ -2,8 +2,8 @@
 
 All estimators take point pairs in *relative* form — ``dx, dy`` = obstacle mean minus own-ship position,
 the obstacle positional covariance ``(sxx, sxy, syy)`` and the disc radius ``R`` — as arrays of any common
-broadcast shape, and return P̂ of that shape.  The sigma shortcut is applied by the caller (the kernel
-evaluates only points that pass it, the rest are 0).
+broadcast shape, and return P̂ of that shape.  The sigma shortcut (P̂ = 0 beyond R + c_σ σ_max) is applied
+by the evaluator, which sends only the points that pass it here.
 
 Random numbers are explicit: :func:`standard_normal_table` draws the common-random-number table from a key.
 """
@@ -33,12 +33,6 @@ def standard_normal_table(key, config, dtype=None):
     if config.estimator == "mc":
         return jax.random.normal(key, (config.n_samples, 2), dtype)
     return jax.random.normal(key, (config.ce_max_iter + 1, config.n_samples, 2), dtype)
-
-
-def shortcut_mask(dx, dy, R, sigma_max, c_sigma):
-    """True where P̂ must be evaluated: ‖μ − p‖ <= R + c_σ σ_max."""
-    thr = R + c_sigma * sigma_max
-    return dx * dx + dy * dy <= thr * thr
 
 
 def _cholesky2(sxx, sxy, syy):

@@ -1,0 +1,61 @@
+"""Shared helpers of the benchmark scripts: environment metadata, timing statistics, result files."""
+
+from __future__ import annotations
+
+import datetime as dt
+import json
+import os
+import platform
+import statistics
+import subprocess
+
+import jax
+import numpy as np
+
+
+def commit() -> str:
+    try:
+        out = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, check=True,
+                             cwd=os.path.dirname(os.path.abspath(__file__)))
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], capture_output=True,
+                               text=True, cwd=os.path.dirname(os.path.abspath(__file__))).stdout.strip()
+        return out.stdout.strip() + ("-dirty" if dirty else "")
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+def jaxlib_version():
+    try:
+        import jaxlib
+
+        return jaxlib.__version__
+    except (ImportError, AttributeError):
+        return None
+
+
+def stats(times_s):
+    q = statistics.quantiles(times_s, n=4)
+    ms = lambda v: round(v * 1e3, 3)
+    return {"median_ms": ms(statistics.median(times_s)), "min_ms": ms(min(times_s)), "max_ms": ms(max(times_s)),
+            "q1_ms": ms(q[0]), "q3_ms": ms(q[2]), "n": len(times_s)}
+
+
+def environment_meta(benchmark: str, **extra) -> dict:
+    """Device, versions, commit and date of this run (recorded with every result file)."""
+    dev = jax.devices()[0]
+    return {"benchmark": benchmark, "device_kind": dev.device_kind, "platform": dev.platform,
+            "n_devices": jax.device_count(), "cpu_count": os.cpu_count(), "machine": platform.machine(),
+            "python": platform.python_version(), "jax": jax.__version__, "jaxlib": jaxlib_version(),
+            "numpy": np.__version__, "commit": commit(),
+            "date": dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds"), **extra}
+
+
+def write_results(out: str, prefix: str, meta: dict, points: list) -> str:
+    """Write ``<out>/<prefix>_<platform>_<UTC timestamp>.json`` and return its path."""
+    os.makedirs(out, exist_ok=True)
+    stamp = dt.datetime.now(dt.timezone.utc).strftime("%Y%m%dT%H%M%SZ")
+    path = os.path.join(out, f"{prefix}_{meta['platform']}_{stamp}.json")
+    with open(path, "w") as fh:
+        json.dump({"meta": meta, "points": points}, fh, indent=1)
+    print(f"wrote {path}")
+    return path
