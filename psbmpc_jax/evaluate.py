@@ -251,10 +251,4 @@ def evaluate(sit: SituationArrays, params: Params, samples, config: PlannerConfi
     return evaluate_arrays(sit, params, samples, config)
 
 
-def cost_only(sit, params, samples, config):
-    """Just (best, total) — what a benchmark or a vmapped sweep needs."""
-    ev = evaluate_arrays(sit, params, samples, config)
-    return ev.best, ev.total
-
-
-__all__ = ["SituationArrays", "Evaluation", "evaluate", "evaluate_arrays", "cost_only"]
+__all__ = ["SituationArrays", "Evaluation", "evaluate", "evaluate_arrays"]

@@ -24,8 +24,3 @@ def safe_sqrt(x):
     """sqrt with a finite gradient at 0 (double-where)."""
     pos = x > 0
     return jnp.where(pos, jnp.sqrt(jnp.where(pos, x, 1.0)), 0.0)
-
-
-def safe_norm(x, y):
-    """Euclidean norm of (x, y) with a finite gradient at the origin."""
-    return safe_sqrt(x * x + y * y)

@@ -72,15 +72,5 @@ def positional_stats(P):
     return a, b, c, jnp.sqrt(lam)
 
 
-def default_route(obs_state, T, min_length: float = 1000.0):
-    """The straight-line route ``[O, 2, 2]`` used when an obstacle has no waypoints (algorithm.md §5)."""
-    speed = jnp.sqrt(obs_state[:, 2] ** 2 + obs_state[:, 3] ** 2)
-    course = jnp.arctan2(obs_state[:, 3], obs_state[:, 2])
-    length = jnp.maximum(2.0 * speed * T, min_length)
-    p0 = obs_state[:, :2]
-    p1 = p0 + length[:, None] * jnp.stack([jnp.cos(course), jnp.sin(course)], axis=-1)
-    return jnp.stack([p0, p1], axis=1)
-
-
 __all__ = ["scenario_offsets", "obstacle_scenarios", "ou_covariance", "obstacle_covariances",
-           "positional_stats", "default_route", "Path"]
+           "positional_stats", "Path"]

@@ -51,10 +51,6 @@ class Trajectory(NamedTuple):
     def vy(self):
         return self.U * self.sin_chi
 
-    def stacked(self):
-        """``[R, N+1, 4]`` array of ``[x, y, chi, U]`` (row-major, as users expect)."""
-        return jnp.stack([self.x.T, self.y.T, self.chi.T, self.U.T], axis=-1)
-
 
 def make_path(wx, wy, n) -> Path:
     """Segment data for padded waypoints ``wx, wy [R, W]`` with ``n [R]`` valid points each."""

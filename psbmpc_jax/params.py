@@ -221,9 +221,4 @@ def params_as_arrays(params: Params, dtype) -> Params:
     return jax.tree_util.tree_map(lambda v: np.asarray(v, dtype=dtype), params)
 
 
-def field_names() -> tuple[str, ...]:
-    return tuple(f.name for f in fields(Params))
-
-
-__all__ = ["PlannerConfig", "Params", "validate_params", "params_as_arrays", "ESTIMATORS", "DTYPES",
-           "field_names"]
+__all__ = ["PlannerConfig", "Params", "validate_params", "params_as_arrays", "ESTIMATORS", "DTYPES"]
