@@ -14,11 +14,12 @@ from .evaluate import Evaluation, SituationArrays, evaluate
 from .params import Params, PlannerConfig
 from .planner import Planner, PlannerState, PlanResult, pack_situation
 from .problem import Obstacle, OwnShip, Situation
+from .sharding import evaluate_sharded
 
 __version__ = "0.1.0"
 
 __all__ = [
     "Planner", "PlannerConfig", "PlannerState", "PlanResult", "Params", "OwnShip", "Obstacle", "Situation",
     "enumerate_behaviours", "enumerate_behaviours_deg", "paper_behaviours", "evaluate", "Evaluation",
-    "SituationArrays", "pack_situation", "__version__",
+    "SituationArrays", "pack_situation", "evaluate_sharded", "__version__",
 ]

@@ -1,0 +1,173 @@
+"""Tests of :func:`psbmpc_jax.sharding.evaluate_sharded` (behaviour axis split over devices with shard_map).
+
+The in-process session has a single CPU device (its device count is fixed once JAX initialises), so the
+multi-device comparisons run in a subprocess with ``--xla_force_host_platform_device_count=4``: 4 devices
+(B = 64 divides evenly) and 3 devices (B = 64 -> 66, padded with masked copies of behaviour 0).
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from psbmpc_jax import Planner, PlannerConfig, evaluate
+from psbmpc_jax.sharding import _sharded_fn, check_devices, evaluate_sharded, pad_behaviours
+
+from conftest import CAPS, SMALL_BEHAVIOURS, pad_arrays, random_situation
+
+ROOT = Path(__file__).resolve().parents[1]
+CFG = PlannerConfig(dtype="float64", T=30.0, dt=0.5, n_samples=128)
+PER_B = ("total", "do", "colregs", "so", "path", "C", "mu", "so_j")
+
+
+def prepared(seed: int, config: PlannerConfig = CFG, **caps):
+    planner = Planner(config, behaviours=SMALL_BEHAVIOURS)
+    arrays, params, samples = planner.prepare(random_situation(seed), key=jax.random.key(seed))
+    return pad_arrays(arrays, **{**CAPS, **caps}), params, samples
+
+
+def assert_same(got, want, n_real: int, rtol: float = 1e-12):
+    assert int(got.best) == int(want.best)
+    np.testing.assert_array_equal(np.asarray(got.best_offsets), np.asarray(want.best_offsets))
+    for name in PER_B:
+        g, w = np.asarray(getattr(got, name)), np.asarray(getattr(want, name))
+        assert g.shape == w.shape, name
+        np.testing.assert_allclose(g[:n_real], w[:n_real], rtol=rtol, atol=1e-300, err_msg=name)
+    for name in ("x", "y", "chi", "U"):
+        np.testing.assert_allclose(np.asarray(getattr(got.own, name))[:, :n_real],
+                                   np.asarray(getattr(want.own, name))[:, :n_real], rtol=rtol, atol=1e-12)
+        np.testing.assert_allclose(np.asarray(getattr(got.obstacles, name)),
+                                   np.asarray(getattr(want.obstacles, name)), rtol=rtol, atol=1e-12)
+    np.testing.assert_allclose(np.asarray(got.obs_cov), np.asarray(want.obs_cov), rtol=rtol, atol=1e-15)
+
+
+# ------------------------------------------------------------------------------------------ in process
+@pytest.mark.parametrize("seed", [0, 4])
+def test_single_device_matches_evaluate(seed):
+    arrays, params, samples = prepared(seed)
+    n_real = int(np.sum(np.asarray(arrays.beh_mask)))
+    want = evaluate(arrays, params, samples, config=CFG)
+    got = evaluate_sharded(arrays, params, samples, CFG)                  # default: jax.local_devices()
+    assert_same(got, want, n_real)
+    assert int(got.n_pc_blocks) == int(want.n_pc_blocks)
+    assert np.all(np.isinf(np.asarray(got.total)[n_real:]))              # padded behaviours masked
+    # one compiled program per (config, device set, shapes): the second seed must not recompile
+    fn, _ = _sharded_fn(CFG, tuple(jax.local_devices()))
+    assert fn._cache_size() == 1
+
+
+def test_unbucketed_behaviour_count_and_mc():
+    """B = 30 (not a multiple of 64) and the Monte Carlo estimator's sample table (replicated input)."""
+    cfg = CFG.replace(estimator="mc")
+    arrays, params, samples = prepared(2, cfg, B=None)
+    arrays = arrays._replace(behaviours=arrays.behaviours[:30], beh_mask=arrays.beh_mask[:30])
+    want = evaluate(arrays, params, samples, config=cfg)
+    got = evaluate_sharded(arrays, params, samples, cfg, devices=jax.local_devices()[:1])
+    assert got.total.shape == (30,) and got.own.x.shape[1] == 30
+    assert_same(got, want, 30)
+
+
+def test_pad_behaviours():
+    beh = np.arange(7 * 2 * 2, dtype=float).reshape(7, 2, 2)
+    mask = np.array([True] * 5 + [False] * 2)
+    pb, pm = pad_behaviours(beh, mask, 4)
+    assert pb.shape == (8, 2, 2) and pm.shape == (8,)
+    np.testing.assert_array_equal(pb[:7], beh)
+    np.testing.assert_array_equal(pb[7], beh[0])                           # masked copy of behaviour 0
+    np.testing.assert_array_equal(pm, [True] * 5 + [False] * 3)
+    pb, pm = pad_behaviours(beh, mask, 3)
+    assert pb.shape[0] == 9 and not pm[7:].any()
+    pb, pm = pad_behaviours(beh, mask, 7)                                  # already a multiple
+    np.testing.assert_array_equal(pb, beh)
+    np.testing.assert_array_equal(pm, mask)
+
+
+class _FakeGpu:
+    platform = "gpu"
+
+
+def test_device_errors():
+    arrays, params, samples = prepared(0)
+    with pytest.raises(ValueError, match="at least one device"):
+        evaluate_sharded(arrays, params, samples, CFG, devices=[])
+    with pytest.raises(ValueError, match="one platform"):
+        check_devices([jax.local_devices()[0], _FakeGpu()])
+    with pytest.raises(ValueError, match="jax devices"):
+        evaluate_sharded(arrays, params, samples, CFG, devices=["cpu:0"])
+    with pytest.raises(ValueError, match="distinct"):
+        check_devices(jax.local_devices()[:1] * 2)
+    assert check_devices(None) == tuple(jax.local_devices())
+
+
+def test_behaviour_errors():
+    arrays, params, samples = prepared(0)
+    empty = arrays._replace(behaviours=arrays.behaviours[:0], beh_mask=arrays.beh_mask[:0])
+    with pytest.raises(ValueError, match="at least one real"):
+        evaluate_sharded(empty, params, samples, CFG)
+    all_masked = arrays._replace(beh_mask=jnp.zeros_like(arrays.beh_mask))
+    with pytest.raises(ValueError, match="at least one real"):
+        evaluate_sharded(all_masked, params, samples, CFG)
+    with pytest.raises(ValueError, match="PlannerConfig"):
+        evaluate_sharded(arrays, params, samples, "float64")
+
+
+# ------------------------------------------------------------------------------------------ 4 host devices
+SCRIPT = textwrap.dedent("""
+    import importlib.util, sys
+    import jax, numpy as np
+    spec = importlib.util.spec_from_file_location("sharding_conftest", sys.argv[1])
+    conf = importlib.util.module_from_spec(spec); spec.loader.exec_module(conf)
+    tests = importlib.util.spec_from_file_location("sharding_tests", sys.argv[2])
+    sys.modules["conftest"] = conf
+    t = importlib.util.module_from_spec(tests); tests.loader.exec_module(t)
+    from psbmpc_jax import evaluate
+    from psbmpc_jax.planner import unpack
+    from psbmpc_jax.sharding import evaluate_sharded
+    if len(sys.argv) > 3:
+        jax.config.update("jax_compilation_cache_dir", sys.argv[3])
+        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+    devs = jax.local_devices()
+    assert len(devs) == 4 and jax.config.jax_enable_x64, (devs, jax.config.jax_enable_x64)
+    for seed in (0, 2, 4):
+        arrays, params, samples = t.prepared(seed)
+        n_real = int(np.sum(np.asarray(arrays.beh_mask)))
+        want = evaluate(arrays, params, samples, config=t.CFG)
+        for n_dev in (4, 3):
+            got = evaluate_sharded(arrays, params, samples, t.CFG, devices=devs[:n_dev])
+            t.assert_same(got, want, n_real)
+            assert set(got.total.sharding.device_set) <= set(devs[:n_dev])
+            assert len(got.C.sharding.device_set) == n_dev            # really spread over the devices
+            if n_dev == 4:                                            # 64 % 4 == 0: no extra padding
+                assert int(got.n_pc_blocks) == int(want.n_pc_blocks)
+            else:                                                     # 2 masked copies of behaviour 0 added
+                assert int(got.n_pc_blocks) >= int(want.n_pc_blocks)
+        res = unpack(got, conf.random_situation(seed), conf.SMALL_BEHAVIOURS, 0.0)
+        ref = unpack(want, conf.random_situation(seed), conf.SMALL_BEHAVIOURS, 0.0)
+        assert res.best_index == ref.best_index
+        np.testing.assert_array_equal(res.costs["total"], ref.costs["total"])
+    print("SHARDING-OK", len(devs))
+""")
+
+
+def test_four_host_devices(request):
+    env = dict(os.environ)
+    env["XLA_FLAGS"] = (env.get("XLA_FLAGS", "") + " --xla_force_host_platform_device_count=4").strip()
+    env["JAX_ENABLE_X64"] = "1"
+    env["JAX_PLATFORMS"] = "cpu"
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (str(ROOT), str(ROOT / "tests"), env.get("PYTHONPATH")) if p)
+    args = [str(ROOT / "tests" / "conftest.py"), str(Path(__file__).resolve())]
+    cache = getattr(request.config, "cache", None)                         # None under -p no:cacheprovider
+    if cache is not None and not os.environ.get("PSBMPC_TEST_NO_JAX_CACHE"):
+        args.append(str(cache.mkdir("jax-compilation-cache-4dev")))
+    proc = subprocess.run([sys.executable, "-c", SCRIPT, *args], env=env, capture_output=True, text=True,
+                          timeout=300, cwd=str(ROOT))
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-6000:]
+    assert "SHARDING-OK 4" in proc.stdout
