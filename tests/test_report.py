@@ -1,0 +1,170 @@
+"""Benchmark report generator (psbmpc_jax.report): loading/validation, tables, crossover, fits, figures.
+
+Fixtures in tests/fixtures/bench/: bench_cpu.jsonl (JAX-CPU + reference for fig5/6/7/9/10, with skipped
+reference points), bench_gpu.jsonl (JAX-GPU for fig5/fig7; the model timings cross JAX-CPU at n_ct = 5000,
+between the measured fig5 points n_ct = 2535 and 5070) and bench_disagree.jsonl (a point where the
+reference and JAX choose different behaviours)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import pathlib
+import re
+import struct
+
+import numpy as np
+import pytest
+
+from psbmpc_jax import report
+
+FIX = pathlib.Path(__file__).parent / "fixtures" / "bench"
+CPU, GPU, DIS = FIX / "bench_cpu.jsonl", FIX / "bench_gpu.jsonl", FIX / "bench_disagree.jsonl"
+
+
+def _png_size(path):
+    data = pathlib.Path(path).read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n"
+    return struct.unpack(">II", data[16:24])
+
+
+@pytest.fixture(scope="module")
+def rendered(tmp_path_factory):
+    out = tmp_path_factory.mktemp("report")
+    recs = report.load_results([CPU, GPU])
+    path = report.write_report(recs, out)
+    return recs, out, path.read_text()
+
+
+def test_load_merges_and_keeps_skipped():
+    recs = report.load_results([CPU, GPU])
+    n_lines = sum(1 for p in (CPU, GPU) for line in p.read_text().splitlines() if line.strip())
+    assert len(recs) == n_lines
+    skipped = [r for r in recs if r["skipped"]]
+    assert skipped and all(r["impl"] == "reference" and r["times_ms"] == [] for r in skipped)
+    assert {report.impl_label(r) for r in recs} == {"reference", "JAX-CPU", "JAX-GPU"}
+    assert report.load_results(FIX) and len(report.load_results(FIX)) == n_lines + 4  # directory input
+
+
+def test_impl_label_multi_device():
+    r = json.loads(GPU.read_text().splitlines()[0])
+    r["n_devices"] = 4
+    assert report.impl_label(r) == "JAX-GPU x4"
+
+
+def test_report_contents(rendered):
+    _, out, md = rendered
+    assert (out / "report.md").exists()
+    # header
+    assert "cpu-box" in md and "gpu-box" in md and "NVIDIA H100 80GB HBM3" in md and "abc1234" in md
+    assert "0.4.35" in md
+    # speed-up tables for every sweep, skipped reference points marked
+    for sweep in ("fig5", "fig6", "fig7", "fig9", "fig10"):
+        assert f"### Sweep `{sweep}`" in md
+    assert "JAX-CPU vs reference" in md and "JAX-GPU vs JAX-CPU" in md
+    assert "SKIPPED†" in md and "reference time budget exhausted" in md
+    row = next(line for line in md.splitlines() if line.startswith("| 2028 | 10140 |"))
+    assert "SKIPPED†" in row
+    # crossover within the built-in bracket [2535, 5070] (model crossover at 5000)
+    m = re.search(r"`fig5` \(n_cbs\), JAX-GPU vs JAX-CPU.*crossover at n_ct ≈ (\d+) \(bracket n_ct ∈ "
+                  r"\[(\d+), (\d+)\]\)", md)
+    assert m, md
+    n_star, lo, hi = map(int, m.groups())
+    assert (lo, hi) == (2535, 5070) and lo <= n_star <= hi and abs(n_star - 5000) < 300
+    assert "fig7` (n_ps), JAX-GPU vs JAX-CPU" in md and "faster at every measured point" in md
+    # fits and the R² check
+    assert "R²" in md
+    assert re.search(r"\| fig5 \| n_cbs \| JAX-CPU \| 6 \| [\d.e-]+ \| [\d.e-]+ \| 0\.9\d{3}", md)
+    assert "`fig5` (n_cbs), JAX-CPU: R² = " in md and "PASS" in md and "FAIL" not in md
+    # consistency
+    assert "All implementations chose the same behaviour" in md and "MISMATCH" not in md
+    assert "All paper figures (5, 6, 7, 9, 10) had data." in md
+
+
+def test_figures_are_images(rendered):
+    _, out, md = rendered
+    for name in ("fig5", "fig6", "fig7", "fig9", "fig10"):
+        p = out / f"{name}.png"
+        assert p.exists() and f"({name}.png)" in md
+        assert p.stat().st_size > 10_000
+        w, h = _png_size(p)
+        assert w >= 500 and h >= 350
+
+
+def test_missing_figures_reported(tmp_path):
+    recs = [r for r in report.load_results([CPU]) if r["sweep"] == "fig5"]
+    md = report.write_report(recs, tmp_path).read_text()
+    assert (tmp_path / "fig5.png").exists() and not (tmp_path / "fig6.png").exists()
+    assert "Figures without data (not drawn)" in md and "fig6" in md and "fig10" in md
+    assert "no crossover can be computed" in md
+
+
+def test_disagreeing_best_flagged(tmp_path):
+    md = report.write_report(report.load_results([DIS]), tmp_path).read_text()
+    assert "WARNING" in md and "**MISMATCH**" in md
+    row = next(line for line in md.splitlines() if line.startswith("| custom | n_cbs | 117 |"))
+    assert "MISMATCH" in row and "reference: 9" in row and "JAX-CPU: 4" in row
+
+
+def test_linear_fit_exact():
+    x = np.array([13, 39, 117, 507, 1014, 2028], dtype=float)
+    f = report.linear_fit(x, 0.0123 * x + 4.56)
+    assert abs(f["r2"] - 1.0) < 1e-12
+    assert f["slope"] == pytest.approx(0.0123, rel=1e-10) and f["intercept"] == pytest.approx(4.56, rel=1e-10)
+    assert np.isnan(report.linear_fit([1.0], [2.0])["r2"])
+    noisy = report.linear_fit(x, x + np.array([50.0, -50, 50, -50, 50, -50]))
+    assert 0.9 < noisy["r2"] < 1.0
+
+
+def test_find_crossover():
+    c = report.find_crossover([100, 1000, 4000, 6000], [1, 3, 9, 13], [9, 9.3, 10.2, 10.8])
+    assert c["kind"] == "crossover" and c["bracket"] == (4000, 6000)
+    # d = 1.2 at 4000, -2.2 at 6000 -> 4000 + 1.2 * 2000 / 3.4
+    assert c["n_ct"] == pytest.approx(4000 + 1.2 * 2000 / 3.4)
+    assert report.find_crossover([1, 2], [1, 2], [5, 6])["kind"] == "none"
+    assert report.find_crossover([1, 2], [5, 6], [1, 2])["kind"] == "gpu_always_faster"
+
+
+def _first_record():
+    return json.loads(CPU.read_text().splitlines()[0])
+
+
+@pytest.mark.parametrize("mutate, message", [
+    (lambda lines: lines[:1] + ["{not json"], r"bad\.jsonl:2: malformed JSON"),
+    (lambda lines: [json.dumps({**_first_record(), "schema": "psbmpc-bench/0"})], r"bad\.jsonl:1: wrong schema"),
+    (lambda lines: [json.dumps({k: v for k, v in _first_record().items() if k not in ("best", "n_ct")})],
+     r"bad\.jsonl:1: missing field\(s\) n_ct, best"),
+    (lambda lines: ["[1, 2]"], r"bad\.jsonl:1: expected a JSON object"),
+    (lambda lines: [json.dumps({**_first_record(), "times_ms": []})], r"not skipped but 'times_ms' is empty"),
+    (lambda lines: [], r"empty input"),
+])
+def test_malformed_inputs(tmp_path, mutate, message):
+    bad = tmp_path / "bad.jsonl"
+    bad.write_text("\n".join(mutate(CPU.read_text().splitlines())) + "\n")
+    with pytest.raises(ValueError, match=message):
+        report.load_results([bad])
+
+
+def test_load_errors(tmp_path):
+    with pytest.raises(ValueError, match="no benchmark results files"):
+        report.load_results([])
+    with pytest.raises(FileNotFoundError, match="not found: .*nope.jsonl"):
+        report.load_results([tmp_path / "nope.jsonl"])
+
+
+def _args(argv):
+    return report.add_report_arguments(argparse.ArgumentParser()).parse_args(argv)
+
+
+def test_cli(tmp_path, capsys):
+    assert _args([]).out == "benchmarks/report"
+    assert report.run_report(_args([])) == 2
+    assert "no benchmark results files given" in capsys.readouterr().err
+    assert report.run_report(_args([str(tmp_path / "missing.jsonl")])) == 2
+    assert "not found" in capsys.readouterr().err
+    (tmp_path / "empty.jsonl").write_text("\n")
+    assert report.run_report(_args([str(tmp_path / "empty.jsonl")])) == 2
+    assert "empty input" in capsys.readouterr().err
+    out = tmp_path / "rep"
+    assert report.main_report([str(CPU), str(GPU), "--out", str(out)]) == 0
+    assert "wrote" in capsys.readouterr().out and (out / "report.md").exists() and (out / "fig5.png").exists()
