@@ -60,6 +60,18 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--repeats", type=_positive_int, default=20, help="steady-state solves to time")
         p.add_argument("--top", type=_positive_int, default=5, help="best behaviours to print")
         p.add_argument("--seed", type=int, default=0, help="PRNG seed for the mc/ce sample table")
+    from .bench import add_bench_arguments
+
+    bench = sub.add_parser("bench", help="runtime benchmark sweeps (paper Figs. 5-10), JSON Lines records",
+                           description="Runtime benchmark sweeps; records follow docs/bench_schema.md.")
+    add_bench_arguments(bench)
+    parser._bench_parser = bench
+    from .report import add_report_arguments
+
+    report = sub.add_parser("report", help="merge benchmark JSON Lines into a Markdown report with figures",
+                            description="Merge psbmpc-bench/1 result files (from any machines) into report.md "
+                                        "and PNG box plots.")
+    add_report_arguments(report)
     return parser
 
 
@@ -110,9 +122,23 @@ def run_example(args) -> int:
 
 
 def main(argv=None) -> int:
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
     if args.command in (None, "example"):
         return run_example(args)
+    if args.command == "bench":
+        from .bench import build_plan, run_bench, select_devices
+
+        try:   # flag combinations argparse cannot check: a usage error naming the flag
+            build_plan(args)
+            select_devices(args.devices)
+        except ValueError as exc:
+            parser._bench_parser.error(str(exc))
+        return run_bench(args)
+    if args.command == "report":
+        from .report import run_report
+
+        return run_report(args)
     raise SystemExit(f"psbmpc-jax: unknown command {args.command!r}")  # argparse already guards this
 
 

@@ -168,3 +168,16 @@ def test_cli(tmp_path, capsys):
     out = tmp_path / "rep"
     assert report.main_report([str(CPU), str(GPU), "--out", str(out)]) == 0
     assert "wrote" in capsys.readouterr().out and (out / "report.md").exists() and (out / "fig5.png").exists()
+
+
+def test_cli_report_subcommand(tmp_path):
+    """`psbmpc-jax report FILES --out DIR` renders the report through the console entry point."""
+    from psbmpc_jax.cli import main
+
+    fixtures = FIX
+    rc = main(["report", str(fixtures / "bench_cpu.jsonl"), str(fixtures / "bench_gpu.jsonl"),
+               "--out", str(tmp_path / "rep")])
+    assert rc == 0
+    text = (tmp_path / "rep" / "report.md").read_text()
+    assert "crossover" in text.lower() and (tmp_path / "rep" / "fig5.png").stat().st_size > 10_000
+    assert main(["report", str(tmp_path / "missing.jsonl"), "--out", str(tmp_path / "x")]) != 0

@@ -1,0 +1,575 @@
+"""Runtime benchmark sweeps (paper Sec. IV-B/C, Figs. 5, 6, 7, 9, 10): ``psbmpc-jax bench``.
+
+Every point is written as one JSON Lines record in the ``psbmpc-bench/1`` format of ``docs/bench_schema.md``
+(appended and flushed as soon as it is measured, so an interrupted sweep keeps what it measured).
+
+Situations (all on the Trondheim chart, :func:`psbmpc_jax.examples.nidelva_head_on`):
+
+* dynamic sweeps (``n_cbs``, ``n_ps``, ``n_do``): the Nidelva head-on — own-ship at 2 m/s, ``n_do`` 5 m
+  vessels coming head-on at 2 m/s (the paper's two at 45 % and 80 % of the open-water run, extra ones at
+  25 %, 35 %, ... of it, alternating 3 m either side of the track), ``n_ps`` scenarios per obstacle, and the
+  13 Table 2 polygons after RDP at 2 m (``n_so = 13``); defaults ``n_do = 2``, ``n_ps = 5``.
+* static sweeps (``n_so``, ``n_vertices``): the own-ship standing still at the same spot (U = U_d = 0), no
+  obstacles; ``n_so``: the first n Table 2 polygons after RDP; ``n_vertices``: the largest polygon alone,
+  the swept values being RDP thresholds eps [m] with 0 = the raw polygon (21 961 vertices; 1 734 at 2 m).
+
+Behaviour sets per ``n_cbs`` (course offsets "k evenly spaced" = ``numpy.linspace(-60, 60, k)`` deg, k = 1 -> {0}):
+
+* 39 / 1014: the paper's Table 1 sets (n_M = 1: speeds {1, 0.5, 0} x 13 courses; n_M = 2: that x {1, 0.5}
+  x 13 courses);
+* other multiples of 3 up to 117: n_M = 1, speeds {1, 0.5, 0} x k = n_cbs / 3 evenly spaced courses;
+* other multiples of 78: n_M = 2, the paper's first maneuver (3 x 13) x speeds {1, 0.5} x k = n_cbs / 78
+  evenly spaced courses;
+* other sweeps use the paper set of ``--n-m`` (default 2: 1014 behaviours).
+
+Presets (chosen so that ``--preset paper`` runs in about 5 minutes on a 2-core CPU — 4 min 43 s measured,
+64 records, 13 reference points skipped — with the default reference budget of 120 s, which the fig5 to
+fig7 reference points mostly use up):
+
+* ``fig5``: n_cbs in 9, 39, 156, 390, 1014, 2028 (n_ps = 1)
+* ``fig6``: n_ps in 1, 3, 5, 9, 15, 21 at n_cbs = 39
+* ``fig7``: n_ps in 1, 3, 5, 7, 9 at n_cbs = 1014
+* ``fig9``: the largest polygon raw and after RDP at 2 m (n_vertices 21 961 and 1 734), 1014 behaviours
+* ``fig10``: n_so in 1..13, 1014 behaviours
+* ``paper``: all of the above; ``smoke``: T = 10 s, n_cbs in 9, 39 (a few seconds, for tests)
+
+Per point and platform: compile time (``lower().compile()``), ``--warmup`` untimed calls, ``--repeats`` timed
+calls with ``block_until_ready``, statistics, peak memory (device ``memory_stats()["peak_bytes_in_use"]``,
+a process-lifetime peak, where the device reports it; else the growth of the process peak RSS during the
+point), the chosen behaviour. Reference points (``impl = "reference"``: the float64 sequential NumPy
+evaluator on the same situation and sample table) run ``--reference-repeats`` times (default 1) while the
+total reference wall time stays within ``--reference-budget`` seconds: a point whose estimated time (from
+the slowest rate seen so far, per behaviour x (scenarios + vertices/100 + 1)) exceeds what is left, or any
+point once the budget is spent, is written with ``skipped: true`` and a ``skip_reason``; with a budget of 0
+every reference point is written as skipped ("reference disabled"). One running reference point is never
+interrupted, so the budget can be overshot by one point.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import json
+import os
+import platform as _platform
+import resource
+import statistics
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, replace
+from functools import lru_cache
+
+import numpy as np
+
+SCHEMA = "psbmpc-bench/1"
+SWEEPS = ("n_cbs", "n_ps", "n_do", "n_so", "n_vertices")
+ESTIMATORS = ("quadrature", "mc", "ce")
+FIELDS = ("schema", "sweep", "swept", "impl", "platform", "device_kind", "n_devices", "host", "estimator", "dtype",
+          "grounding_mode", "n_M", "n_cbs", "n_do", "n_ps", "n_so", "n_vertices", "n_ct", "T", "dt", "compile_s",
+          "times_ms", "median_ms", "min_ms", "max_ms", "q1_ms", "q3_ms", "peak_memory_bytes", "memory_source",
+          "best", "skipped", "skip_reason", "versions", "commit", "timestamp")
+
+#: (swept, values, fixed settings) per preset figure.
+PRESETS = {
+    "fig5": ("n_cbs", (9, 39, 156, 390, 1014, 2028), {"n_ps": 1}),
+    "fig6": ("n_ps", (1, 3, 5, 9, 15, 21), {"n_cbs": 39}),
+    "fig7": ("n_ps", (1, 3, 5, 7, 9), {"n_cbs": 1014}),
+    "fig9": ("n_vertices", (0.0, 2.0), {"n_cbs": 1014}),
+    "fig10": ("n_so", tuple(range(1, 14)), {"n_cbs": 1014}),
+    "smoke": ("n_cbs", (9, 39), {"n_ps": 1, "T": 10.0}),
+}
+PAPER_FIGS = ("fig5", "fig6", "fig7", "fig9", "fig10")
+
+
+# ----------------------------------------------------------------------------------------------- metadata
+def commit() -> str:
+    here = os.path.dirname(os.path.abspath(__file__))
+    try:
+        out = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, check=True, cwd=here)
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], capture_output=True,
+                               text=True, cwd=here).stdout.strip()
+        return out.stdout.strip() + ("-dirty" if dirty else "")
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+def versions() -> dict:
+    import jax
+
+    try:
+        import jaxlib
+
+        jaxlib_v = jaxlib.__version__
+    except (ImportError, AttributeError):
+        jaxlib_v = "unknown"
+    return {"python": _platform.python_version(), "jax": jax.__version__, "jaxlib": jaxlib_v,
+            "numpy": np.__version__}
+
+
+def stats_ms(times_s) -> dict:
+    if not times_s:
+        return {"times_ms": [], "median_ms": None, "min_ms": None, "max_ms": None, "q1_ms": None, "q3_ms": None}
+    ms = [round(t * 1e3, 4) for t in times_s]
+    q = statistics.quantiles(ms, n=4, method="inclusive") if len(ms) > 1 else [ms[0]] * 3
+    return {"times_ms": ms, "median_ms": float(statistics.median(ms)), "min_ms": float(min(ms)),
+            "max_ms": float(max(ms)), "q1_ms": float(q[0]), "q3_ms": float(q[2])}
+
+
+def peak_rss_bytes() -> int:
+    r = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return int(r) if sys.platform == "darwin" else int(r) * 1024
+
+
+def device_peak(device):
+    try:
+        ms = device.memory_stats()
+    except Exception:  # noqa: BLE001 - not every backend implements it
+        return None
+    if ms and "peak_bytes_in_use" in ms:
+        return int(ms["peak_bytes_in_use"])
+    return None
+
+
+# ---------------------------------------------------------------------------------------------- points
+@dataclass(frozen=True)
+class Point:
+    sweep: str            # preset/figure name or "custom"
+    swept: str
+    value: float
+    n_cbs: int = 1014
+    n_ps: int = 5
+    n_do: int = 2
+    n_so: int = 13
+    eps: float = 2.0      # RDP threshold [m], 0 = raw polygons
+    still: bool = False   # own-ship standing still, no obstacles
+    largest_only: bool = False
+    T: float = 150.0
+
+    def label(self) -> str:
+        v = self.value
+        if self.swept == "n_vertices":
+            return f"{self.sweep} n_vertices(rdp eps={v:g} m{', raw' if v == 0 else ''})"
+        return f"{self.sweep} {self.swept}={int(v) if float(v).is_integer() else v}"
+
+
+def behaviours_for(n_cbs: int) -> np.ndarray:
+    """The behaviour table of ``n_cbs`` behaviours (rules in the module docstring)."""
+    from .behaviours import PAPER_COURSES_DEG, PAPER_SPEEDS, enumerate_behaviours_deg, paper_behaviours
+
+    if n_cbs == 39:
+        return paper_behaviours(1)
+    if n_cbs == 1014:
+        return paper_behaviours(2)
+    if n_cbs % 3 == 0 and 3 <= n_cbs <= 117:
+        return enumerate_behaviours_deg([PAPER_SPEEDS[0]], [np.linspace(-60.0, 60.0, n_cbs // 3)])
+    if n_cbs % 78 == 0 and n_cbs >= 78:
+        return enumerate_behaviours_deg(PAPER_SPEEDS, [PAPER_COURSES_DEG, np.linspace(-60.0, 60.0, n_cbs // 78)])
+    raise ValueError(f"--values: n_cbs={n_cbs} is not supported; allowed: 39, 1014, multiples of 3 up to 117 "
+                     f"(n_M=1) or multiples of 78 (n_M=2)")
+
+
+@lru_cache(maxsize=8)
+def _nidelva(eps: float, n_ps: int, rdp: bool):
+    from .examples import nidelva_head_on
+
+    return nidelva_head_on(eps=eps, n_ps=n_ps, n_so=13, rdp=rdp)
+
+
+def _situation(p: Point):
+    from .examples import nidelva_polygons
+    from .problem import Obstacle, OwnShip, Situation
+
+    rdp = p.eps > 0
+    eps = p.eps if rdp else 2.0
+    if p.still:   # same spot and heading as the dynamic situations, standing still, no obstacles
+        own = _nidelva(2.0, 1, True).own_ship
+        own = OwnShip(state=[own.state[0], own.state[1], own.state[2], 0.0], waypoints=own.waypoints, U_d=0.0,
+                      length=own.length, width=own.width)
+        rings, _ = nidelva_polygons(eps, 13 if p.largest_only else p.n_so, rdp)
+        polys = (rings[-1],) if p.largest_only else tuple(rings)
+        return Situation(own, (), polys)
+    base = _nidelva(eps, p.n_ps, rdp)
+    own = base.own_ship
+    obstacles = list(base.obstacles[:p.n_do])
+    if p.n_do > 2:
+        w = np.asarray(own.waypoints, float)
+        pos, run_vec = w[0], w[-1] - w[0]
+        run = float(np.hypot(*run_vec))
+        u = run_vec / run
+        for k in range(2, p.n_do):
+            frac = 0.25 + 0.1 * ((k - 2) % 8)
+            q = pos + frac * run * u + (-1.0) ** k * 3.0 * np.array([-u[1], u[0]])
+            obstacles.append(Obstacle(state=[q[0], q[1], -2.0 * u[0], -2.0 * u[1]], cov=np.diag([4.0, 4.0, .05, .05]),
+                                      length=5.0, width=3.0, n_ps=p.n_ps))
+    return Situation(own, tuple(obstacles), tuple(base.polygons[:p.n_so]))
+
+
+def n_vertices(situation) -> int:
+    from .problem import polygon_rings
+
+    return int(sum(sum(len(r) for r in polygon_rings(poly)) for poly in situation.polygons))
+
+
+def make_points(swept: str, values, fixed: dict, sweep_name: str) -> list[Point]:
+    base = Point(sweep=sweep_name, swept=swept, value=0, **fixed)
+    pts = []
+    for v in values:
+        if swept == "n_cbs":
+            pts.append(replace(base, value=v, n_cbs=int(v)))
+        elif swept == "n_ps":
+            pts.append(replace(base, value=v, n_ps=int(v)))
+        elif swept == "n_do":
+            pts.append(replace(base, value=v, n_do=int(v)))
+        elif swept == "n_so":
+            pts.append(replace(base, value=v, n_so=int(v), still=True))
+        elif swept == "n_vertices":
+            pts.append(replace(base, value=float(v), eps=float(v), still=True, largest_only=True, n_so=1))
+    return pts
+
+
+def parse_values(text: str, swept: str) -> list:
+    items = [s.strip() for s in text.split(",") if s.strip()]
+    if not items:
+        raise ValueError(f"--values must be a comma-separated list of numbers, got {text!r}")
+    out = []
+    for s in items:
+        try:
+            v = float(s)
+        except ValueError:
+            raise ValueError(f"--values: {s!r} is not a number (expected e.g. --values 1,3,5)") from None
+        if swept == "n_vertices":
+            if not (np.isfinite(v) and v >= 0):
+                raise ValueError(f"--values for n_vertices are RDP thresholds eps >= 0 [m] (0 = raw), got {s}")
+            out.append(v)
+            continue
+        if not float(v).is_integer():
+            raise ValueError(f"--values for {swept} must be integers, got {s}")
+        v = int(v)
+        lo = 0 if swept == "n_do" else 1
+        if v < lo:
+            raise ValueError(f"--values for {swept} must be >= {lo}, got {v}")
+        if swept == "n_ps" and v % 2 == 0:
+            raise ValueError(f"--values: n_ps must be odd, got {v}")
+        if swept == "n_so" and v > 13:
+            raise ValueError(f"--values: n_so must be in [1, 13] (Table 2 polygons), got {v}")
+        if swept == "n_cbs":
+            behaviours_for(v)  # raises with the allowed values
+        out.append(v)
+    return out
+
+
+# ------------------------------------------------------------------------------------------ arguments
+def _positive_int(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer (>= 1), got {v}")
+    return v
+
+
+def _nonneg_int(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {v}")
+    return v
+
+
+def _odd_int(text: str) -> int:
+    v = _positive_int(text)
+    if v % 2 == 0:
+        raise argparse.ArgumentTypeError(f"n_ps must be odd, got {v}")
+    return v
+
+
+def _pos_float(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number > 0, got {text!r}") from None
+    if not (np.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"expected a finite number > 0, got {text!r}")
+    return v
+
+
+def _nonneg_float(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number >= 0 (seconds), got {text!r}") from None
+    if not (np.isfinite(v) and v >= 0):
+        raise argparse.ArgumentTypeError(f"expected a finite number >= 0 (seconds), got {text!r}")
+    return v
+
+
+def add_bench_arguments(p: argparse.ArgumentParser) -> None:
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--preset", choices=tuple(PRESETS)[:5] + ("paper", "smoke"),
+                   help="paper figure sweep (fig5/fig6/fig7/fig9/fig10), all of them (paper), or smoke")
+    g.add_argument("--sweep", choices=SWEEPS, help="explicit sweep of one size (needs --values)")
+    p.add_argument("--values", help="comma-separated values for --sweep, e.g. 1,3,5 (n_vertices: RDP eps [m], 0=raw)")
+    p.add_argument("--estimator", choices=ESTIMATORS, default="quadrature")
+    p.add_argument("--dtype", choices=("float32", "float64"), default="float32")
+    p.add_argument("--grounding", choices=("exact", "grid"), default="exact", help="grounding mode")
+    p.add_argument("--n-m", type=int, choices=(1, 2), default=None,
+                   help="paper behaviour set for sweeps other than n_cbs: 1 -> 39, 2 -> 1014 (default)")
+    p.add_argument("--n-ps", type=_odd_int, default=None, help="scenarios per obstacle when not swept (odd, "
+                   "default 5; fig5 and smoke: 1)")
+    p.add_argument("--n-do", type=_nonneg_int, default=None, help="obstacles when not swept (default 2)")
+    p.add_argument("--T", type=_pos_float, default=None, help="horizon [s] (default 150; smoke: 10)")
+    p.add_argument("--dt", type=_pos_float, default=0.5, help="time step [s] (default 0.5)")
+    p.add_argument("--repeats", type=_positive_int, default=10, help="timed steady-state solves (default 10)")
+    p.add_argument("--warmup", type=_nonneg_int, default=2, help="untimed solves after compiling (default 2)")
+    p.add_argument("--reference-budget", type=_nonneg_float, default=120.0,
+                   help="total wall seconds for reference points (default 120; 0 disables the reference)")
+    p.add_argument("--reference-repeats", type=_positive_int, default=1, help="reference solves per point")
+    p.add_argument("--devices", choices=("all", "cpu", "gpu"), default="all",
+                   help="JAX platforms to run on (default all: CPU and the GPU if present)")
+    p.add_argument("--multi-device", action="store_true",
+                   help="also run on all devices of a platform with evaluate_sharded when it has several")
+    p.add_argument("--out", help="JSON Lines file to append to (default "
+                   "benchmarks/results/bench_<host>_<timestamp>.jsonl)")
+    p.add_argument("--seed", type=int, default=0, help="PRNG seed of the mc/ce sample table")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+
+
+def build_plan(args) -> list[Point]:
+    """Validated list of points for the parsed arguments (raises ValueError naming the flag)."""
+    if args.preset is None and args.sweep is None:
+        raise ValueError("psbmpc-jax bench: give --preset {fig5,fig6,fig7,fig9,fig10,paper,smoke} or --sweep "
+                         "{n_cbs,n_ps,n_do,n_so,n_vertices} with --values")
+    if args.preset is not None and args.values is not None:
+        raise ValueError("--values only goes with --sweep, not with --preset")
+    if args.sweep is not None and args.values is None:
+        raise ValueError(f"--sweep {args.sweep} needs --values, e.g. --values 1,3,5")
+    if args.sweep == "n_cbs" and args.n_m is not None:
+        raise ValueError("--n-m cannot be combined with --sweep n_cbs (n_cbs fixes the behaviour sets)")
+    if args.sweep == "n_ps" and args.n_ps is not None:
+        raise ValueError("--n-ps cannot be combined with --sweep n_ps")
+    if args.sweep == "n_do" and args.n_do is not None:
+        raise ValueError("--n-do cannot be combined with --sweep n_do")
+    overrides = {}
+    if args.n_ps is not None:
+        overrides["n_ps"] = args.n_ps
+    if args.n_do is not None:
+        overrides["n_do"] = args.n_do
+    if args.T is not None:
+        overrides["T"] = args.T
+    if args.n_m is not None:
+        overrides["n_cbs"] = 39 if args.n_m == 1 else 1014
+    if args.preset is not None:
+        names = PAPER_FIGS if args.preset == "paper" else (args.preset,)
+        pts = []
+        for name in names:
+            swept, values, fixed = PRESETS[name]
+            fixed = {**fixed, **{k: v for k, v in overrides.items() if k != swept}}
+            pts += make_points(swept, values, fixed, name)
+    else:
+        values = parse_values(args.values, args.sweep)
+        pts = make_points(args.sweep, values, overrides, "custom")
+    for p in pts:
+        n = p.T / args.dt
+        if abs(n - round(n)) > 1e-9 * max(1.0, n):
+            raise ValueError(f"--T / --dt must be a whole number of steps, got T={p.T}, dt={args.dt}")
+    return pts
+
+
+def select_devices(which: str) -> dict:
+    """{platform: [devices]} for --devices."""
+    import jax
+
+    out = {}
+    for plat in ("cpu", "gpu"):
+        if which not in ("all", plat):
+            continue
+        try:
+            devs = jax.devices(plat)
+        except RuntimeError:
+            devs = []
+        if devs:
+            out[plat] = devs
+    if not out:
+        raise ValueError(f"--devices {which}: no JAX {which} device is available "
+                         f"(present: {sorted({d.platform for d in jax.devices()})})")
+    return out
+
+
+def default_out() -> str:
+    stamp = dt.datetime.now(dt.timezone.utc).strftime("%Y%m%dT%H%M%SZ")
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    return os.path.join(root, "benchmarks", "results", f"bench_{_platform.node() or 'host'}_{stamp}.jsonl")
+
+
+# -------------------------------------------------------------------------------------------- running
+class Runner:
+    def __init__(self, args, fh):
+        self.args, self.fh = args, fh
+        self.meta = {"host": _platform.node(), "versions": versions(), "commit": commit()}
+        self.ref_used = 0.0
+        self.ref_rate = None   # slowest seconds per cost unit seen
+
+    def base_record(self, p: Point, situation, behaviours, impl: str) -> dict:
+        n_cbs = len(behaviours)
+        n_do = len(situation.obstacles)
+        n_so = len(situation.polygons)
+        n_ps = max([ob.n_ps for ob in situation.obstacles], default=0)   # 0: no obstacles
+        rec = dict.fromkeys(FIELDS)
+        rec.update(schema=SCHEMA, sweep=p.sweep, swept=p.swept, impl=impl, host=self.meta["host"],
+                   estimator=self.args.estimator, dtype=self.args.dtype, grounding_mode=self.args.grounding,
+                   n_M=int(behaviours.shape[1]), n_cbs=n_cbs, n_do=n_do, n_ps=int(n_ps), n_so=n_so,
+                   n_vertices=n_vertices(situation), n_ct=n_cbs * (n_so + n_do * int(n_ps)), T=float(p.T),
+                   dt=float(self.args.dt), skipped=False, versions=self.meta["versions"],
+                   commit=self.meta["commit"], **stats_ms([]))
+        return rec
+
+    def write(self, rec: dict) -> None:
+        rec["timestamp"] = dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds")
+        assert set(rec) == set(FIELDS), set(rec) ^ set(FIELDS)
+        self.fh.write(json.dumps(rec) + "\n")
+        self.fh.flush()
+
+    def run_jax(self, p, situation, behaviours, config, devices, multi: bool) -> dict:
+        import jax
+
+        from .evaluate import evaluate
+        from .planner import Planner
+
+        dev = devices[0]
+        rss0 = peak_rss_bytes()
+        with jax.default_device(dev):
+            planner = Planner(config, behaviours=behaviours)
+            arrays, params, samples = planner.prepare(situation, key=jax.random.key(self.args.seed))
+        if multi:
+            from .sharding import evaluate_sharded
+
+            call = lambda: evaluate_sharded(arrays, params, samples, config, devices=devices)  # noqa: E731
+            t0 = time.perf_counter()
+            ev = jax.block_until_ready(call())     # first call: compile + one run
+            compile_s = time.perf_counter() - t0
+        else:
+            arrays, params, samples = jax.device_put((arrays, params, samples), dev)
+            t0 = time.perf_counter()
+            compiled = evaluate.lower(arrays, params, samples, config=config).compile()
+            compile_s = time.perf_counter() - t0
+            call = lambda: compiled(arrays, params, samples)  # noqa: E731
+        for _ in range(self.args.warmup):
+            ev = jax.block_until_ready(call())
+        times = []
+        for _ in range(self.args.repeats):
+            t0 = time.perf_counter()
+            ev = jax.block_until_ready(call())
+            times.append(time.perf_counter() - t0)
+        rec = self.base_record(p, situation, behaviours, "jax")
+        peak = device_peak(dev)
+        if peak is not None:
+            rec.update(peak_memory_bytes=peak, memory_source="device")
+        else:
+            rec.update(peak_memory_bytes=max(0, peak_rss_bytes() - rss0), memory_source="process_rss")
+        rec.update(platform=dev.platform, device_kind=dev.device_kind, n_devices=len(devices) if multi else 1,
+                   compile_s=round(compile_s, 4), best=int(ev.best), **stats_ms(times))
+        return rec
+
+    def run_reference(self, p, situation, behaviours, config, samples) -> dict:
+        from .params import Params
+        from .reference import evaluate_reference
+
+        rec = self.base_record(p, situation, behaviours, "reference")
+        rec.update(platform="cpu", device_kind="cpu", n_devices=1, dtype="float64", memory_source="process_rss")
+        budget = self.args.reference_budget
+        units = len(behaviours) * (rec["n_do"] * rec["n_ps"] + rec["n_vertices"] / 100.0 + 1.0) * config.n_steps
+        left = budget - self.ref_used
+        reason = None
+        if budget <= 0:
+            reason = "reference disabled (--reference-budget 0)"
+        elif left <= 0:
+            reason = f"reference time budget exhausted ({self.ref_used:.1f} s of {budget:g} s used)"
+        elif self.ref_rate is not None and self.ref_rate * units * self.args.reference_repeats > left:
+            reason = (f"reference time budget exhausted (estimated "
+                      f"{self.ref_rate * units * self.args.reference_repeats:.1f} s > {left:.1f} s left of "
+                      f"{budget:g} s)")
+        if reason is not None:
+            rec.update(skipped=True, skip_reason=reason)
+            return rec
+        rss0 = peak_rss_bytes()
+        ref_samples = None if samples is None else np.asarray(samples, dtype=np.float64)
+        cfg64 = config.replace(dtype="float64")
+        times, res = [], None
+        for _ in range(self.args.reference_repeats):
+            t0 = time.perf_counter()
+            res = evaluate_reference(situation, behaviours, Params(), cfg64, samples=ref_samples)
+            times.append(time.perf_counter() - t0)
+        used = sum(times)
+        self.ref_used += used
+        rate = used / len(times) / units
+        self.ref_rate = rate if self.ref_rate is None else max(self.ref_rate, rate)
+        rec.update(best=int(res.best), peak_memory_bytes=max(0, peak_rss_bytes() - rss0), **stats_ms(times))
+        return rec
+
+
+def _samples_for_reference(config, seed):
+    """The sample table the JAX points use (host float64 copy), None for quadrature."""
+    import jax
+
+    from .costs.collision import standard_normal_table
+
+    s = standard_normal_table(jax.random.key(seed), config, np.dtype(config.dtype))
+    return None if s is None else np.asarray(s, dtype=np.float64)
+
+
+def run_bench(args) -> int:
+    """Entry point of ``psbmpc-jax bench`` (``args`` from :func:`add_bench_arguments`)."""
+    import jax
+
+    if args.dtype == "float64":
+        jax.config.update("jax_enable_x64", True)
+    points = build_plan(args)
+    platforms = select_devices(args.devices)
+    from .params import PlannerConfig
+
+    # no persistent compilation cache here: compile_s is a real compile, not a cache load
+    runs = []   # (platform, devices, multi)
+    for plat, devs in platforms.items():
+        runs.append((devs[:1], False))
+        if args.multi_device and len(devs) > 1:
+            runs.append((devs, True))
+    total = len(points) * (len(runs) + 1)
+    out = args.out or default_out()
+    os.makedirs(os.path.dirname(os.path.abspath(out)), exist_ok=True)
+    done = 0
+    t_start = time.perf_counter()
+
+    def progress(p, what, rec):
+        if args.quiet:
+            return
+        val = ("skipped" if rec["skipped"] else f"{rec['median_ms']:.1f} ms")
+        print(f"[{done}/{total}] {p.label()} {what} {val}", file=sys.stderr, flush=True)
+
+    with open(out, "a", encoding="utf-8") as fh:
+        runner = Runner(args, fh)
+        for p in points:
+            behaviours = behaviours_for(p.n_cbs)
+            situation = _situation(p)
+            config = PlannerConfig(T=p.T, dt=args.dt, estimator=args.estimator, dtype=args.dtype,
+                                   grounding_mode=args.grounding)
+            for devs, multi in runs:
+                rec = runner.run_jax(p, situation, behaviours, config, devs, multi)
+                runner.write(rec)
+                done += 1
+                progress(p, f"jax/{rec['platform']}" + (f" x{rec['n_devices']}" if multi else ""), rec)
+            samples = _samples_for_reference(config, args.seed) if args.reference_budget > 0 else None
+            rec = runner.run_reference(p, situation, behaviours, config, samples)
+            runner.write(rec)
+            done += 1
+            progress(p, "reference", rec)
+    if not args.quiet:
+        print(f"psbmpc-jax bench: {done} records appended to {out} in {time.perf_counter() - t_start:.0f} s",
+              file=sys.stderr)
+    return 0
+
+
+__all__ = ["run_bench", "add_bench_arguments", "build_plan", "behaviours_for", "FIELDS", "SCHEMA", "PRESETS"]

@@ -1,0 +1,131 @@
+"""``psbmpc-jax bench``: JSON Lines records in the psbmpc-bench/1 schema, reference budget, argument errors."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from psbmpc_jax.bench import FIELDS, SCHEMA, behaviours_for
+from psbmpc_jax.cli import main
+
+FAST = ["--repeats", "2", "--warmup", "0", "--devices", "cpu", "--quiet"]
+ONE_POINT = ["--sweep", "n_cbs", "--values", "9", "--T", "10"]
+
+STR = ("schema", "sweep", "swept", "impl", "platform", "device_kind", "host", "estimator", "dtype", "grounding_mode",
+       "memory_source", "commit", "timestamp")
+INT = ("n_devices", "n_M", "n_cbs", "n_do", "n_ps", "n_so", "n_vertices", "n_ct")
+FLOAT_OR_NONE = ("compile_s", "median_ms", "min_ms", "max_ms", "q1_ms", "q3_ms")
+
+
+def read(path):
+    with open(path) as fh:
+        return [json.loads(line) for line in fh if line.strip()]
+
+
+def check_record(rec):
+    assert set(rec) == set(FIELDS)
+    assert rec["schema"] == SCHEMA
+    for k in STR:
+        assert isinstance(rec[k], str), k
+    for k in INT:
+        assert isinstance(rec[k], int) and not isinstance(rec[k], bool), k
+    for k in ("T", "dt"):
+        assert isinstance(rec[k], float), k
+    for k in FLOAT_OR_NONE:
+        assert rec[k] is None or isinstance(rec[k], float), k
+    assert isinstance(rec["times_ms"], list) and all(isinstance(t, float) for t in rec["times_ms"])
+    assert rec["peak_memory_bytes"] is None or isinstance(rec["peak_memory_bytes"], int)
+    assert rec["memory_source"] in ("device", "process_rss")
+    assert rec["best"] is None or isinstance(rec["best"], int)
+    assert isinstance(rec["skipped"], bool)
+    assert rec["skip_reason"] is None or isinstance(rec["skip_reason"], str)
+    assert set(rec["versions"]) == {"python", "jax", "jaxlib", "numpy"}
+    assert rec["impl"] in ("jax", "reference")
+    assert rec["n_ct"] == rec["n_cbs"] * (rec["n_so"] + rec["n_do"] * rec["n_ps"])
+    if rec["skipped"]:
+        assert rec["times_ms"] == [] and rec["median_ms"] is None and rec["skip_reason"]
+    else:
+        assert rec["skip_reason"] is None and rec["min_ms"] <= rec["median_ms"] <= rec["max_ms"]
+        assert isinstance(rec["best"], int)
+    if rec["impl"] == "reference":
+        assert rec["dtype"] == "float64" and rec["compile_s"] is None and rec["platform"] == "cpu"
+    else:
+        assert rec["compile_s"] > 0
+
+
+def test_smoke_preset_end_to_end(tmp_path):
+    out = tmp_path / "b.jsonl"
+    assert main(["bench", "--preset", "smoke", "--out", str(out), *FAST]) == 0
+    recs = read(out)
+    for rec in recs:
+        check_record(rec)
+    jax_recs = [r for r in recs if r["impl"] == "jax"]
+    ref_recs = [r for r in recs if r["impl"] == "reference"]
+    assert [r["n_cbs"] for r in jax_recs] == [9, 39] and len(ref_recs) == 2
+    assert all(r["sweep"] == "smoke" and r["swept"] == "n_cbs" and r["T"] == 10.0 for r in recs)
+    assert all(len(r["times_ms"]) == 2 for r in jax_recs)
+    for j, r in zip(jax_recs, ref_recs):   # same situation, same answer (default budget is ample here)
+        assert not r["skipped"] and len(r["times_ms"]) == 1
+        assert r["best"] == j["best"]
+
+
+def test_budget_zero_marks_reference_skipped_and_append_keeps_lines(tmp_path):
+    out = tmp_path / "b.jsonl"
+    out.write_text('{"earlier": 1}\n')
+    args = ["bench", *ONE_POINT, "--reference-budget", "0", "--out", str(out), *FAST]
+    assert main(args) == 0
+    assert main(args) == 0
+    lines = out.read_text().splitlines()
+    assert json.loads(lines[0]) == {"earlier": 1}
+    recs = [json.loads(x) for x in lines[1:]]
+    assert len(recs) == 4
+    for rec in recs:
+        check_record(rec)
+    ref = [r for r in recs if r["impl"] == "reference"]
+    assert len(ref) == 2 and all(r["skipped"] and "disabled" in r["skip_reason"] for r in ref)
+
+
+def test_tiny_budget_skips_with_reason(tmp_path):
+    out = tmp_path / "b.jsonl"
+    assert main(["bench", "--preset", "smoke", "--reference-budget", "1e-6", "--out", str(out), *FAST]) == 0
+    ref = [r for r in read(out) if r["impl"] == "reference"]
+    assert len(ref) == 2
+    assert not ref[0]["skipped"]      # the first point always runs (nothing used yet), then the budget is spent
+    assert ref[1]["skipped"] and "budget" in ref[1]["skip_reason"]
+    check_record(ref[1])
+
+
+@pytest.mark.parametrize("argv, needle", [
+    (["--preset", "fig99"], "--preset"),
+    (["--sweep", "n_ps", "--values", "1,2"], "odd"),
+    (["--preset", "smoke", "--n-ps", "4"], "odd"),
+    (["--preset", "smoke", "--repeats", "0"], "--repeats"),
+    (["--preset", "smoke", "--repeats", "-3"], "--repeats"),
+    (["--sweep", "n_ps", "--values", "a,b"], "--values"),
+    (["--sweep", "n_ps", "--values", ","], "--values"),
+    (["--sweep", "n_ps"], "--values"),
+    (["--sweep", "n_cbs", "--values", "40"], "n_cbs=40"),
+    (["--sweep", "n_so", "--values", "14"], "n_so"),
+    (["--sweep", "n_bogus", "--values", "1"], "--sweep"),
+    (["--preset", "smoke", "--values", "1"], "--values"),
+    ([], "--preset"),
+    (["--preset", "smoke", "--reference-budget", "-1"], "--reference-budget"),
+    (["--preset", "smoke", "--T", "10", "--dt", "0.3"], "--dt"),
+    (["--preset", "smoke", "--devices", "tpu"], "--devices"),
+])
+def test_bad_arguments_give_clear_errors(argv, needle, capsys, tmp_path):
+    with pytest.raises(SystemExit) as exc:
+        main(["bench", *argv, "--out", str(tmp_path / "x.jsonl")])
+    assert exc.value.code == 2
+    assert needle in capsys.readouterr().err
+    assert not (tmp_path / "x.jsonl").exists()
+
+
+def test_behaviour_sets_sizes():
+    for n in (3, 9, 39, 117, 78, 156, 1014, 2028):
+        b = behaviours_for(n)
+        assert b.shape[0] == n
+    assert behaviours_for(39).shape[1] == 1 and behaviours_for(156).shape[1] == 2
+    with pytest.raises(ValueError, match="n_cbs=100"):
+        behaviours_for(100)
