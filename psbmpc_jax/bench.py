@@ -27,8 +27,9 @@ Presets (chosen so that ``--preset paper`` runs in about 5 minutes on a 2-core C
 fig7 reference points mostly use up):
 
 * ``fig5``: n_cbs in 9, 39, 156, 390, 1014, 2028 (n_ps = 1)
-* ``fig6``: n_ps in 1, 3, 5, 9, 15, 21 at n_cbs = 39
-* ``fig7``: n_ps in 1, 3, 5, 7, 9 at n_cbs = 1014
+* ``fig6``: n_ps in 1, 11, 21, 41, 61, 81, 101 at n_cbs = 39 (the paper's Fig. 6 range)
+* ``fig7``: n_ps in 1, 5, 11, 21, 31, 41 at n_cbs = 1014 (wide enough that the n_ps-dependent work
+  shows above the fixed grounding cost of the 13 polygons)
 * ``fig9``: the largest polygon raw and after RDP at 2 m (n_vertices 21 961 and 1 734), 1014 behaviours
 * ``fig10``: n_so in 1..13, 1014 behaviours
 * ``paper``: all of the above; ``smoke``: T = 10 s, n_cbs in 9, 39 (a few seconds, for tests)
@@ -73,8 +74,8 @@ FIELDS = ("schema", "sweep", "swept", "impl", "platform", "device_kind", "n_devi
 #: (swept, values, fixed settings) per preset figure.
 PRESETS = {
     "fig5": ("n_cbs", (9, 39, 156, 390, 1014, 2028), {"n_ps": 1}),
-    "fig6": ("n_ps", (1, 3, 5, 9, 15, 21), {"n_cbs": 39}),
-    "fig7": ("n_ps", (1, 3, 5, 7, 9), {"n_cbs": 1014}),
+    "fig6": ("n_ps", (1, 11, 21, 41, 61, 81, 101), {"n_cbs": 39}),
+    "fig7": ("n_ps", (1, 5, 11, 21, 31, 41), {"n_cbs": 1014}),
     "fig9": ("n_vertices", (0.0, 2.0), {"n_cbs": 1014}),
     "fig10": ("n_so", tuple(range(1, 14)), {"n_cbs": 1014}),
     "smoke": ("n_cbs", (9, 39), {"n_ps": 1, "T": 10.0}),

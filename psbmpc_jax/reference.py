@@ -547,7 +547,7 @@ def colregs_violation(own_traj, obs_traj, params: Params = Params()) -> np.ndarr
     starboard = np.cos(chi0) * dp[:, 1] - np.sin(chi0) * dp[:, 0] > 0.0
     head_on = ((n0 > 0.05) & (dot < -COS_22_5 * n0 * ni)
                & (v0[:, 0] * L[:, 0] + v0[:, 1] * L[:, 1] > COS_67_5 * n0))
-    crossed = dot < COS_67_5 * n0 * ni
+    crossed = (n0 > 0.05) & (dot < COS_67_5 * n0 * ni)   # [choice] moving own-ship, as HEAD-ON
     return close & starboard & (head_on | (crossed & ~overtaken))
 
 
