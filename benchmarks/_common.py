@@ -40,6 +40,26 @@ def stats(times_s):
             "q1_ms": ms(q[0]), "q3_ms": ms(q[2]), "n": len(times_s)}
 
 
+def time_compiled(arrays, params, samples, config, repeats: int, warmup: int = 1):
+    """Compile ``evaluate`` for these inputs (timed separately), run ``warmup`` untimed calls, then
+    ``repeats`` timed calls with ``block_until_ready``.  Returns (compile_s, times_s, last Evaluation)."""
+    import time
+
+    from psbmpc_jax.evaluate import evaluate
+
+    t0 = time.perf_counter()
+    compiled = evaluate.lower(arrays, params, samples, config=config).compile()
+    compile_s = time.perf_counter() - t0
+    for _ in range(warmup):
+        jax.block_until_ready(compiled(arrays, params, samples))
+    times, ev = [], None
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        ev = jax.block_until_ready(compiled(arrays, params, samples))
+        times.append(time.perf_counter() - t0)
+    return compile_s, times, ev
+
+
 def environment_meta(benchmark: str, **extra) -> dict:
     """Device, versions, commit and date of this run (recorded with every result file)."""
     dev = jax.devices()[0]

@@ -24,12 +24,11 @@ jax.config.update("jax_enable_x64", True)  # float64 points need it; float32 poi
 import numpy as np  # noqa: E402
 
 from psbmpc_jax import Planner, PlannerConfig, paper_behaviours  # noqa: E402
-from psbmpc_jax.evaluate import evaluate  # noqa: E402
 from psbmpc_jax.examples import paper_head_on  # noqa: E402
 from psbmpc_jax.reference import evaluate_reference  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _common import environment_meta, stats, write_results  # noqa: E402
+from _common import environment_meta, stats, time_compiled, write_results  # noqa: E402
 
 
 def bench_point(estimator: str, dtype: str, repeats: int, ref_repeats: int, seed: int = 0) -> dict:
@@ -40,16 +39,7 @@ def bench_point(estimator: str, dtype: str, repeats: int, ref_repeats: int, seed
     key = jax.random.key(seed)
     arrays, params, samples = planner.prepare(situation, key=key)
 
-    t0 = time.perf_counter()
-    compiled = evaluate.lower(arrays, params, samples, config=config).compile()
-    compile_s = time.perf_counter() - t0
-    for _ in range(3):
-        jax.block_until_ready(compiled(arrays, params, samples))
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        ev = jax.block_until_ready(compiled(arrays, params, samples))
-        times.append(time.perf_counter() - t0)
+    compile_s, times, ev = time_compiled(arrays, params, samples, config, repeats, warmup=3)
     best = int(ev.best)
 
     ref_samples = None if samples is None else np.asarray(samples, dtype=np.float64)

@@ -23,11 +23,10 @@ import time
 import jax
 
 from psbmpc_jax import OwnShip, Planner, PlannerConfig, Situation, paper_behaviours
-from psbmpc_jax.evaluate import evaluate
 from psbmpc_jax.examples import nidelva_head_on, nidelva_polygons
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _common import environment_meta, stats, write_results  # noqa: E402
+from _common import environment_meta, stats, time_compiled, write_results  # noqa: E402
 
 
 def time_solve(situation, config: PlannerConfig, repeats: int, seed: int = 0) -> dict:
@@ -35,15 +34,7 @@ def time_solve(situation, config: PlannerConfig, repeats: int, seed: int = 0) ->
     t0 = time.perf_counter()
     arrays, params, samples = planner.prepare(situation, key=jax.random.key(seed))
     prepare_s = time.perf_counter() - t0            # includes the grid build in grid mode
-    t0 = time.perf_counter()
-    compiled = evaluate.lower(arrays, params, samples, config=config).compile()
-    compile_s = time.perf_counter() - t0
-    jax.block_until_ready(compiled(arrays, params, samples))
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        ev = jax.block_until_ready(compiled(arrays, params, samples))
-        times.append(time.perf_counter() - t0)
+    compile_s, times, ev = time_compiled(arrays, params, samples, config, repeats, warmup=1)
     n_edges = int(sum(sum(len(r) for r in (p if isinstance(p, tuple) else (p,))) for p in situation.polygons))
     return {"estimator": config.estimator, "grounding_mode": config.grounding_mode, "n_cbs": 1014,
             "n_do": len(situation.obstacles), "n_so": len(situation.polygons), "n_edges": n_edges,

@@ -62,6 +62,8 @@ from functools import lru_cache
 
 import numpy as np
 
+from .argtypes import nonneg_float, nonneg_int, odd_int, positive_float, positive_int
+
 SCHEMA = "psbmpc-bench/1"
 SWEEPS = ("n_cbs", "n_ps", "n_do", "n_so", "n_vertices")
 ESTIMATORS = ("quadrature", "mc", "ce")
@@ -260,53 +262,6 @@ def parse_values(text: str, swept: str) -> list:
 
 
 # ------------------------------------------------------------------------------------------ arguments
-def _positive_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer (>= 1), got {v}")
-    return v
-
-
-def _nonneg_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}") from None
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {v}")
-    return v
-
-
-def _odd_int(text: str) -> int:
-    v = _positive_int(text)
-    if v % 2 == 0:
-        raise argparse.ArgumentTypeError(f"n_ps must be odd, got {v}")
-    return v
-
-
-def _pos_float(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number > 0, got {text!r}") from None
-    if not (np.isfinite(v) and v > 0):
-        raise argparse.ArgumentTypeError(f"expected a finite number > 0, got {text!r}")
-    return v
-
-
-def _nonneg_float(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number >= 0 (seconds), got {text!r}") from None
-    if not (np.isfinite(v) and v >= 0):
-        raise argparse.ArgumentTypeError(f"expected a finite number >= 0 (seconds), got {text!r}")
-    return v
-
-
 def add_bench_arguments(p: argparse.ArgumentParser) -> None:
     g = p.add_mutually_exclusive_group()
     g.add_argument("--preset", choices=tuple(PRESETS)[:5] + ("paper", "smoke"),
@@ -318,16 +273,16 @@ def add_bench_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--grounding", choices=("exact", "grid"), default="exact", help="grounding mode")
     p.add_argument("--n-m", type=int, choices=(1, 2), default=None,
                    help="paper behaviour set for sweeps other than n_cbs: 1 -> 39, 2 -> 1014 (default)")
-    p.add_argument("--n-ps", type=_odd_int, default=None, help="scenarios per obstacle when not swept (odd, "
+    p.add_argument("--n-ps", type=odd_int, default=None, help="scenarios per obstacle when not swept (odd, "
                    "default 5; fig5 and smoke: 1)")
-    p.add_argument("--n-do", type=_nonneg_int, default=None, help="obstacles when not swept (default 2)")
-    p.add_argument("--T", type=_pos_float, default=None, help="horizon [s] (default 150; smoke: 10)")
-    p.add_argument("--dt", type=_pos_float, default=0.5, help="time step [s] (default 0.5)")
-    p.add_argument("--repeats", type=_positive_int, default=10, help="timed steady-state solves (default 10)")
-    p.add_argument("--warmup", type=_nonneg_int, default=2, help="untimed solves after compiling (default 2)")
-    p.add_argument("--reference-budget", type=_nonneg_float, default=120.0,
+    p.add_argument("--n-do", type=nonneg_int, default=None, help="obstacles when not swept (default 2)")
+    p.add_argument("--T", type=positive_float, default=None, help="horizon [s] (default 150; smoke: 10)")
+    p.add_argument("--dt", type=positive_float, default=0.5, help="time step [s] (default 0.5)")
+    p.add_argument("--repeats", type=positive_int, default=10, help="timed steady-state solves (default 10)")
+    p.add_argument("--warmup", type=nonneg_int, default=2, help="untimed solves after compiling (default 2)")
+    p.add_argument("--reference-budget", type=nonneg_float, default=120.0,
                    help="total wall seconds for reference points (default 120; 0 disables the reference)")
-    p.add_argument("--reference-repeats", type=_positive_int, default=1, help="reference solves per point")
+    p.add_argument("--reference-repeats", type=positive_int, default=1, help="reference solves per point")
     p.add_argument("--devices", choices=("all", "cpu", "gpu"), default="all",
                    help="JAX platforms to run on (default all: CPU and the GPU if present)")
     p.add_argument("--multi-device", action="store_true",

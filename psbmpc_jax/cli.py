@@ -13,6 +13,8 @@ import statistics
 import sys
 import time
 
+from .argtypes import odd_int, positive_int
+
 
 def enable_compilation_cache() -> None:
     """Persistent XLA compilation cache (saves the 2-5 s compile on later runs)."""
@@ -27,23 +29,6 @@ def enable_compilation_cache() -> None:
         pass
 
 
-def _positive_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {v}")
-    return v
-
-
-def _odd_int(text: str) -> int:
-    v = _positive_int(text)
-    if v % 2 == 0:
-        raise argparse.ArgumentTypeError(f"n_ps must be odd, got {v}")
-    return v
-
-
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="psbmpc-jax", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -55,10 +40,10 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--dtype", choices=("float32", "float64"), default="float32")
         p.add_argument("--n-m", type=int, choices=(1, 2), default=2,
                        help="maneuvers per behaviour with the paper sets: 2 -> 1014 behaviours, 1 -> 39")
-        p.add_argument("--n-ps", type=_odd_int, default=5, help="prediction scenarios per obstacle (odd)")
+        p.add_argument("--n-ps", type=odd_int, default=5, help="prediction scenarios per obstacle (odd)")
         p.add_argument("--obstacles", type=int, default=2, help="number of head-on obstacles (>= 0)")
-        p.add_argument("--repeats", type=_positive_int, default=20, help="steady-state solves to time")
-        p.add_argument("--top", type=_positive_int, default=5, help="best behaviours to print")
+        p.add_argument("--repeats", type=positive_int, default=20, help="steady-state solves to time")
+        p.add_argument("--top", type=positive_int, default=5, help="best behaviours to print")
         p.add_argument("--seed", type=int, default=0, help="PRNG seed for the mc/ce sample table")
     from .bench import add_bench_arguments
 
