@@ -25,7 +25,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .costs.grounding import edge_table, polygon_distance
-from .problem import polygon_rings
+from .problem import polygon_rings, ring_vertices
 
 
 class DistanceGrid(NamedTuple):
@@ -40,15 +40,7 @@ class DistanceGrid(NamedTuple):
 
 def _edge_tables(polygons, dtype):
     """One padded edge table per polygon ``[P, V, 7]`` and the edge counts ``[P]``."""
-    rows = []
-    for poly in polygons:
-        verts, nxt, start = [], [], 0
-        for ring in polygon_rings(poly):
-            n = len(ring)
-            verts.append(np.asarray(ring, float))
-            nxt.append(start + (np.arange(n) + 1) % n)
-            start += n
-        rows.append((np.concatenate(verts), np.concatenate(nxt).astype(np.int32)))
+    rows = [ring_vertices(poly) for poly in polygons]
     v_cap = max(len(v) for v, _ in rows)
     verts = np.zeros((len(rows), v_cap, 2))
     nxt = np.zeros((len(rows), v_cap), np.int32)

@@ -21,7 +21,7 @@ from .costs.collision import standard_normal_table
 from .distance_grid import DistanceGrid, build_distance_grid, polygons_key, reach_region
 from .evaluate import Evaluation, SituationArrays, evaluate
 from .params import Params, PlannerConfig, params_as_arrays, validate_params
-from .problem import Situation, polygon_rings
+from .problem import Situation, ring_vertices
 
 COST_TERMS = ("total", "do", "colregs", "so", "path")
 
@@ -153,22 +153,17 @@ def pack_situation(situation: Situation, behaviours: np.ndarray, state: PlannerS
         obs_probs[i, : ob.n_ps] = ob.probs
         obs_weight[i], obs_zeta[i], obs_mask[i] = ob.weight, ob.zeta, True
 
-    polys = [polygon_rings(poly) for poly in situation.polygons]
+    polys = [ring_vertices(poly) for poly in situation.polygons]
     p_cap = bucket(len(polys), 0)
-    v_cap = bucket(max([sum(len(r) for r in rings) for rings in polys], default=4), 4)
+    v_cap = bucket(max([len(v) for v, _ in polys], default=4), 4)
     poly_v = np.zeros((p_cap, v_cap, 2))
     poly_next = np.tile((np.arange(v_cap) + 1) % 3, (p_cap, 1)).astype(np.int32)
     poly_n = np.full(p_cap, 3, dtype=np.int32)
     poly_mask = np.zeros(p_cap, dtype=bool)
-    for j, rings in enumerate(polys):
-        start = 0
-        for ring in rings:               # rings back to back; each closes on itself (even-odd over all)
-            n = len(ring)
-            poly_v[j, start:start + n] = ring
-            poly_next[j, start:start + n] = start + (np.arange(n) + 1) % n
-            start += n
-        poly_next[j, start:] = 0
-        poly_n[j], poly_mask[j] = start, True
+    for j, (verts, nxt) in enumerate(polys):   # rings back to back, each closing on itself
+        n = len(verts)
+        poly_v[j, :n], poly_next[j, :n], poly_next[j, n:] = verts, nxt, 0
+        poly_n[j], poly_mask[j] = n, True
 
     b = len(behaviours)
     b_cap = bucket_behaviours(b)

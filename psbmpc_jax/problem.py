@@ -80,6 +80,18 @@ def polygon_rings(polygon) -> tuple[np.ndarray, ...]:
     return polygon if isinstance(polygon, tuple) else (polygon,)
 
 
+def ring_vertices(polygon) -> tuple[np.ndarray, np.ndarray]:
+    """A polygon's rings back to back: vertices ``[n, 2]`` and, per vertex, the index of the next vertex of
+    the same ring ``[n]`` (each ring closes on itself; the even-odd rule over all edges handles holes)."""
+    verts, nxt, start = [], [], 0
+    for ring in polygon_rings(polygon):
+        n = len(ring)
+        verts.append(np.asarray(ring, dtype=float))
+        nxt.append(start + (np.arange(n) + 1) % n)
+        start += n
+    return np.concatenate(verts), np.concatenate(nxt).astype(np.int32)
+
+
 @dataclass(frozen=True)
 class OwnShip:
     """Own-ship: state ``[x, y, chi, U]``, route ``waypoints [n >= 2, 2]`` and nominal speed ``U_d``."""

@@ -20,6 +20,7 @@ from psbmpc_jax import Obstacle, OwnShip, Params, PlannerConfig, Planner, Situat
 from psbmpc_jax import reference as ref_mod
 from psbmpc_jax.costs.grounding import edge_table, polygon_distance
 from psbmpc_jax.planner import pack_situation, PlannerState
+from psbmpc_jax.problem import ring_vertices
 
 
 def star(rng, n, cx, cy, r_min, r_max):
@@ -31,13 +32,9 @@ def star(rng, n, cx, cy, r_min, r_max):
 
 
 def device_distance(rings, pts):
-    """Pack one polygon (list of rings) like pack_situation does and run the device kernel."""
-    verts = np.concatenate(rings)
-    nxt, start = [], 0
-    for r in rings:
-        nxt += list(start + (np.arange(len(r)) + 1) % len(r))
-        start += len(r)
-    tab = edge_table(jnp.asarray(verts), jnp.asarray(np.array(nxt, np.int32)))
+    """Pack one polygon (tuple of rings) like pack_situation does and run the device kernel."""
+    verts, nxt = ring_vertices(tuple(rings))
+    tab = edge_table(jnp.asarray(verts), jnp.asarray(nxt))
     return polygon_distance(jnp.asarray(pts[:, 0]), jnp.asarray(pts[:, 1]), tab, len(verts))
 
 
