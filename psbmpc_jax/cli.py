@@ -8,6 +8,7 @@ the cost breakdown of the best behaviours and the solve time (compile time and s
 from __future__ import annotations
 
 import argparse
+import pathlib
 import os
 import statistics
 import sys
@@ -57,6 +58,12 @@ def build_parser() -> argparse.ArgumentParser:
                             description="Merge psbmpc-bench/1 result files (from any machines) into report.md "
                                         "and PNG box plots.")
     add_report_arguments(report)
+    run = sub.add_parser("run", help="closed-loop Monte Carlo simulation of scenario files, with metrics and plots",
+                         description="Simulate scenarios (built-in names, glob patterns over them such as "
+                                     "'imazu_*', or paths to YAML files; see docs/scenarios.md) and write "
+                                     "metrics.json, summary.md and figures per scenario.")
+    add_run_arguments(run)
+    parser._run_parser = run
     return parser
 
 
@@ -106,6 +113,68 @@ def run_example(args) -> int:
     return 0
 
 
+def add_run_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("scenarios", nargs="*", help="built-in scenario names or patterns (see --list), or YAML paths")
+    p.add_argument("--list", action="store_true", help="list the built-in scenarios and exit")
+    p.add_argument("--runs", type=positive_int, default=None, help="Monte Carlo runs (default: the file's)")
+    p.add_argument("--seed", type=int, default=None, help="base seed (default: the file's)")
+    p.add_argument("--out", default="results", help="output folder; one sub-folder per scenario (default: results)")
+    p.add_argument("--batch", choices=("auto", "vmap", "loop"), default="auto",
+                   help="device calls per MPC update: one vmapped call for all runs and ships, or one per solve "
+                        "(auto: vmap on an accelerator, loop on the CPU)")
+    p.add_argument("--no-figures", action="store_true", help="write metrics only")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def run_scenarios(args, parser) -> int:
+    import fnmatch
+    import json
+
+    from .scenario import builtin_scenarios, load_scenario
+
+    names = builtin_scenarios()
+    if args.list:
+        for n in names:
+            print(n)
+        return 0
+    if not args.scenarios:
+        parser.error("give at least one scenario (built-in name, pattern or YAML path); --list shows the names")
+    if args.seed is not None and args.seed < 0:
+        parser.error(f"--seed must be >= 0, got {args.seed}")
+    selected = []
+    for item in args.scenarios:
+        if item.endswith((".yaml", ".yml")) or "/" in item:
+            selected.append(item)
+            continue
+        hits = fnmatch.filter(names, item)
+        if not hits:
+            parser.error(f"no built-in scenario matches {item!r}; built-in: {', '.join(names)}")
+        selected += hits
+    enable_compilation_cache()
+    from .sim import simulate
+    from .sim.output import write_outputs
+
+    failures = 0
+    for item in selected:
+        try:
+            scenario = load_scenario(item)
+        except (ValueError, OSError) as exc:
+            parser.error(str(exc))
+        t0 = time.perf_counter()
+        result = simulate(scenario, runs=args.runs, seed=args.seed, batch=args.batch, progress=not args.quiet)
+        out = pathlib.Path(args.out) / scenario.name
+        write_outputs(result, out, figures=not args.no_figures)
+        s = result.summary
+        bad = s["collisions"] + s["groundings"] + s["pair_collision_runs"] + s["any_ship_groundings"]
+        failures += bool(bad)
+        print(f"{scenario.name}: {s['runs']} runs in {time.perf_counter() - t0:.0f} s -- own-ship collisions "
+              f"{s['collisions']}, groundings {s['groundings']}, any-pair collisions {s['pair_collision_runs']}, "
+              f"any-ship groundings {s['any_ship_groundings']}; closest approach "
+              + json.dumps({tg["name"]: tg["min_distance_m"]["min"] for tg in s["targets"]})
+              + f"; results in {out}/")
+    return 1 if failures else 0
+
+
 def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -120,6 +189,8 @@ def main(argv=None) -> int:
         except ValueError as exc:
             parser._bench_parser.error(str(exc))
         return run_bench(args)
+    if args.command == "run":
+        return run_scenarios(args, parser._run_parser)
     if args.command == "report":
         from .report import run_report
 

@@ -1,0 +1,99 @@
+"""Named MPC tunings: the paper's Nidelva (Table 1) and Sakshaug (Table 3) situations and an open-sea tuning
+for the Imazu cases.
+
+A preset is (PlannerConfig, Params, behaviour sets).  Scenario files name a preset and may override any
+field; :func:`build_mpc` applies the overrides and validates them.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from .behaviours import PAPER_COURSES_DEG, PAPER_SPEEDS, SAKSHAUG_COURSES_DEG, enumerate_behaviours_deg
+from .params import Params, PlannerConfig, validate_params
+
+
+@dataclass(frozen=True)
+class MPCPreset:
+    """One tuning: static config, parameter values, per-maneuver speed-factor and course-offset sets [deg]."""
+
+    name: str
+    description: str
+    config: PlannerConfig
+    params: Params
+    speed_sets: tuple[tuple[float, ...], ...]
+    course_sets_deg: tuple[tuple[float, ...], ...]
+    n_ps: int = 5
+
+    def behaviours(self) -> np.ndarray:
+        return enumerate_behaviours_deg(self.speed_sets, self.course_sets_deg)
+
+
+PRESETS: dict[str, MPCPreset] = {
+    "nidelva": MPCPreset(
+        name="nidelva",
+        description="Paper Table 1 (river, 5 m vessels): T 150 s, dt 0.5 s, r_ct 10 m, d_safe 5 m, 1014 behaviours",
+        config=PlannerConfig(T=150.0, dt=0.5, grounding_mode="grid", grid_spacing=1.0),
+        params=Params(),
+        speed_sets=PAPER_SPEEDS,
+        course_sets_deg=(PAPER_COURSES_DEG, PAPER_COURSES_DEG),
+    ),
+    "sakshaug": MPCPreset(
+        name="sakshaug",
+        description="Paper Table 3 (narrow strait, 10 m vessels): T 150 s, dt 1 s, r_ct 20 m, d_safe 10 m, "
+                    "course offsets +-90 deg in 15 deg steps, 1014 behaviours",
+        config=PlannerConfig(T=150.0, dt=1.0, grounding_mode="grid", grid_spacing=1.0),
+        params=Params(r_ct=20.0, d_safe=10.0, d_close=300.0),
+        speed_sets=PAPER_SPEEDS,
+        course_sets_deg=(SAKSHAUG_COURSES_DEG, SAKSHAUG_COURSES_DEG),
+    ),
+    "open_sea": MPCPreset(
+        name="open_sea",
+        description="Open sea (Imazu cases, 10 m/s ships): T 300 s, dt 1 s, r_ct 50 m, d_safe 100 m, "
+                    "d_close 1500 m, course offsets +-90 deg in 15 deg steps, 1014 behaviours",
+        config=PlannerConfig(T=300.0, dt=1.0),
+        params=Params(r_ct=50.0, d_safe=100.0, d_close=1500.0, T_d=200.0, os_lookahead=500.0, ob_lookahead=500.0,
+                      os_R_a=50.0, ob_R_a=50.0, os_T_chi=5.0, os_T_U=10.0, ob_T_chi=5.0, ob_T_U=10.0),
+        speed_sets=PAPER_SPEEDS,
+        course_sets_deg=(SAKSHAUG_COURSES_DEG, SAKSHAUG_COURSES_DEG),
+    ),
+}
+
+_CONFIG_FIELDS = tuple(f.name for f in dataclasses.fields(PlannerConfig))
+_PARAM_FIELDS = tuple(f.name for f in dataclasses.fields(Params))
+
+
+def get_preset(name: str) -> MPCPreset:
+    if name not in PRESETS:
+        raise ValueError(f"unknown MPC preset {name!r}; allowed: {sorted(PRESETS)}")
+    return PRESETS[name]
+
+
+def build_mpc(preset: str, config_overrides: dict | None = None, param_overrides: dict | None = None,
+              speed_sets=None, course_sets_deg=None):
+    """(PlannerConfig, Params, behaviours [B, n_M, 2]) of ``preset`` with overrides applied and validated.
+
+    Raises:
+        ValueError: unknown preset or field names, or values the config/params reject.
+    """
+    p = get_preset(preset)
+    config_overrides = dict(config_overrides or {})
+    param_overrides = dict(param_overrides or {})
+    bad = sorted(set(config_overrides) - set(_CONFIG_FIELDS))
+    if bad:
+        raise ValueError(f"unknown PlannerConfig field(s) {bad}; allowed: {list(_CONFIG_FIELDS)}")
+    bad = sorted(set(param_overrides) - set(_PARAM_FIELDS))
+    if bad:
+        raise ValueError(f"unknown Params field(s) {bad}; allowed: {list(_PARAM_FIELDS)}")
+    config = p.config.replace(**config_overrides)
+    params = p.params.replace(**{k: float(v) for k, v in param_overrides.items()})
+    validate_params(params)
+    speeds = p.speed_sets if speed_sets is None else speed_sets
+    courses = p.course_sets_deg if course_sets_deg is None else course_sets_deg
+    if len(speeds) != len(courses):
+        raise ValueError(f"speed_factors and course_offsets_deg need one set per maneuver, got {len(speeds)} and "
+                         f"{len(courses)}")
+    return config, params, enumerate_behaviours_deg(speeds, courses)

@@ -1,0 +1,806 @@
+"""Closed-loop scenario files: schema (frozen dataclasses, SI units and radians inside), YAML loading and
+validation.
+
+The YAML format is documented in ``docs/scenarios.md``; degrees and knots appear only in the file (with the
+unit in the field name) and are converted exactly once, here.
+
+API: :func:`load_scenario` (a ``.yaml``/``.yml`` path or a built-in name), :func:`scenario_from_dict` (a
+parsed mapping), :func:`builtin_scenarios` (the names of the files in ``psbmpc_jax/scenarios/``).  Every
+problem in a file raises ``ValueError`` naming the key and what is allowed; nothing is clamped or dropped.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import numbers
+import os
+import pathlib
+import re
+from dataclasses import dataclass, field
+from functools import lru_cache
+
+import numpy as np
+import shapely
+import shapely.validation
+import yaml
+from shapely.geometry import LineString, MultiPolygon, Point, Polygon
+
+from .params import Params, PlannerConfig
+
+COLAV_MODES = ("none", "psbmpc")
+
+
+@dataclass(frozen=True)
+class ShipSpec:
+    """One vessel of a scenario (own-ship or target), SI units, NED frame.
+
+    Attributes:
+        name: unique name within the scenario.
+        position: initial ``[north, east]`` [m].
+        course: initial course over ground [rad].
+        speed: initial speed over ground [m/s].
+        waypoints: route ``[n >= 2, 2]`` [m] (LOS guidance follows it; after the last waypoint the ship holds
+            the last leg's course).
+        U_d: nominal (cruise) speed [m/s].
+        speed_plan: optional ``[m, 2]`` rows ``(t [s], U_d [m/s])``: from time t on, the nominal speed is U_d
+            (piecewise constant; before the first row the nominal speed is ``U_d``).  ``None``: constant.
+        length, width: hull size [m].
+        T_chi, T_U: autopilot time constants of the true motion [s].
+        lookahead, R_a: LOS lookahead distance and waypoint acceptance radius [m].
+        colav: ``"none"`` (follows its route) or ``"psbmpc"`` (runs its own PSB-MPC).
+    """
+
+    name: str
+    position: np.ndarray
+    course: float
+    speed: float
+    waypoints: np.ndarray
+    U_d: float
+    speed_plan: np.ndarray | None = None
+    length: float = 5.0
+    width: float = 3.0
+    T_chi: float = 0.92
+    T_U: float = 1.44
+    lookahead: float = 66.0
+    R_a: float = 5.0
+    colav: str = "none"
+
+
+@dataclass(frozen=True)
+class SensorSpec:
+    """The own-ship's target tracking (seed 004): position measurements and a constant-velocity Kalman filter.
+
+    Attributes:
+        position_std: true measurement noise standard deviation per axis [m].
+        period: time between measurements [s].
+        filter_R_scale: the filter's measurement covariance is ``filter_R_scale * position_std**2 * I``
+            (seed 004 uses 25: a deliberately conservative tracker).
+        sigma_a: process-noise strength of the filter's constant-velocity model [m/s^2].
+        U_max: maximum target speed [m/s], sets the initial velocity variance of single-point initiation.
+        colav_target_cov: ``[pos_var m^2, vel_var (m/s)^2]`` of the (noise-free) estimates that ships running
+            their own PSB-MPC get of the others.
+    """
+
+    position_std: float = 5.0
+    period: float = 2.5
+    filter_R_scale: float = 25.0
+    sigma_a: float = 0.5
+    U_max: float = 10.0
+    colav_target_cov: tuple[float, float] = (1.0, 0.01)
+
+
+@dataclass(frozen=True)
+class MPCSpec:
+    """The PSB-MPC tuning every psbmpc ship uses.
+
+    Attributes:
+        preset: name in :data:`psbmpc_jax.presets.PRESETS`.
+        config, params, behaviours: the preset with the file's overrides applied.
+        n_ps: prediction scenarios per obstacle (odd).
+        period: MPC update period [s] (a multiple of the simulation step).
+    """
+
+    preset: str
+    config: PlannerConfig
+    params: Params
+    behaviours: np.ndarray
+    n_ps: int = 5
+    period: float = 5.0
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A closed-loop scenario, validated.
+
+    Attributes:
+        name, description: identification.
+        own_ship: the own-ship (index 0 in simulation arrays).
+        targets: target ships (indices 1..n).
+        polygons: land as ring sets in the scenario's NED frame (``()`` for open water).
+        chart_info: where the land came from (source, origin, CRS, RDP epsilon) for reports.
+        sensor, mpc: tracking and planner settings.
+        dt, duration: simulation step and length [s].
+        runs, seed: Monte Carlo runs and the base seed.
+        collision_distance: centre-to-centre distance below which two ships collide [m] (default: the
+            planner's d_safe).
+        source: the file it was loaded from (``None`` if built in code).
+    """
+
+    name: str
+    description: str
+    own_ship: ShipSpec
+    targets: tuple[ShipSpec, ...]
+    sensor: SensorSpec
+    mpc: MPCSpec
+    polygons: tuple = ()
+    chart_info: dict = field(default_factory=dict)
+    dt: float = 0.5
+    duration: float = 300.0
+    runs: int = 20
+    seed: int = 0
+    collision_distance: float | None = None
+    source: str | None = None
+
+    @property
+    def ships(self) -> tuple[ShipSpec, ...]:
+        return (self.own_ship,) + tuple(self.targets)
+
+    @property
+    def d_collision(self) -> float:
+        return float(self.mpc.params.d_safe if self.collision_distance is None else self.collision_distance)
+
+
+# ====================================================================================================== loading
+__all__ = [
+    "ShipSpec", "SensorSpec", "MPCSpec", "Scenario", "COLAV_MODES", "KNOT", "SCENARIO_DIR",
+    "scenario_from_dict", "load_scenario", "builtin_scenarios",
+]
+
+#: One knot in m/s (exact: 1 international nautical mile = 1852 m).
+KNOT = 1852.0 / 3600.0
+
+#: The folder of the built-in scenario files (package data).
+SCENARIO_DIR = pathlib.Path(__file__).resolve().parent / "scenarios"
+
+#: Minimum length of a default (straight) route [m].
+DEFAULT_ROUTE_MIN_M = 1000.0
+
+#: Tolerance of the "is a multiple of the simulation step" checks (relative to the number of steps).
+MULTIPLE_TOL = 1e-9
+
+#: Quarter-circle segments of the buffer that ``chart.clip_m`` intersects the land with.
+CLIP_QUAD_SEGS = 16
+
+_BUILTIN_CHARTS = ("trondheim", "trondheim-psbmpc", "trondheim-shapefile")
+
+_TOP_KEYS = ("name", "description", "simulation", "monte_carlo", "collision_distance_m", "mpc", "sensor", "chart",
+             "own_ship", "targets")
+_TOP_REQUIRED = ("name", "simulation", "mpc", "own_ship")
+_SIM_KEYS = ("dt_s", "duration_s")
+_MC_KEYS = ("runs", "seed")
+_MPC_KEYS = ("preset", "update_period_s", "n_ps", "config", "params", "speed_factors", "course_offsets_deg")
+_SENSOR_KEYS = ("position_std_m", "period_s", "filter_R_scale", "sigma_a_mps2", "U_max_mps", "U_max_kn",
+                "colav_target_cov")
+_COV_KEYS = ("position_var_m2", "velocity_var_m2s2")
+_CHART_KEYS = ("builtin", "file", "polygons_m", "origin_utm", "rdp_eps_m", "clip_m")
+_ORIGIN_KEYS = ("east", "north", "zone")
+_SHIP_KEYS = ("name", "position_m", "position_utm", "course_deg", "speed_mps", "speed_kn", "nominal_speed_mps",
+              "nominal_speed_kn", "waypoints_m", "waypoints_utm", "speed_plan", "length_m", "width_m", "T_chi_s",
+              "T_U_s", "lookahead_m", "R_a_m", "colav")
+_PLAN_KEYS = ("t_s", "speed_mps", "speed_kn")
+
+
+# ---------------------------------------------------------------------------------------------- primitives
+def _mapping(value, where: str) -> dict:
+    if not isinstance(value, dict):
+        raise ValueError(f"{where} must be a mapping (key: value), got {type(value).__name__} {value!r}"[:300])
+    return value
+
+
+def _check_keys(d: dict, allowed, where: str, required=()) -> None:
+    for k in d:
+        if k not in allowed:
+            raise ValueError(f"unknown key {k!r} in {where}; allowed keys: {', '.join(allowed)}")
+    for k in required:
+        if k not in d:
+            raise ValueError(f"{where}: missing required key {k!r}")
+
+
+def _path(where: str, key: str) -> str:
+    return f"{where}.{key}" if where else key
+
+
+def _is_number(v) -> bool:
+    return isinstance(v, numbers.Real) and not isinstance(v, bool)
+
+
+def _number(v, where: str, *, gt=None, ge=None, le=None) -> float:
+    """A finite real number (int or float, not bool), optionally bounded; returned as float."""
+    if not _is_number(v) or not math.isfinite(float(v)):
+        raise ValueError(f"{where} must be a finite number, got {v!r}")
+    x = float(v)
+    if gt is not None and not x > gt:
+        raise ValueError(f"{where} must be > {gt:g}, got {v!r}")
+    if ge is not None and not x >= ge:
+        raise ValueError(f"{where} must be >= {ge:g}, got {v!r}")
+    if le is not None and not x <= le:
+        raise ValueError(f"{where} must be <= {le:g}, got {v!r}")
+    return x
+
+
+def _integer(v, where: str, *, ge: int) -> int:
+    if isinstance(v, bool) or not isinstance(v, numbers.Integral) or v < ge:
+        raise ValueError(f"{where} must be an integer >= {ge}, got {v!r}")
+    return int(v)
+
+
+def _string(v, where: str) -> str:
+    if not isinstance(v, str) or not v.strip():
+        raise ValueError(f"{where} must be a non-empty string, got {v!r}")
+    return v
+
+
+def _one_of(d: dict, keys, where: str, *, required: bool) -> str | None:
+    """The one key of ``keys`` present in ``d`` (unit alternatives such as speed_mps / speed_kn)."""
+    present = [k for k in keys if k in d]
+    if len(present) > 1:
+        raise ValueError(f"{where}: give only one of {' / '.join(keys)}, got {' and '.join(present)}")
+    if not present:
+        if required:
+            raise ValueError(f"{where}: missing required key, one of {' / '.join(keys)}")
+        return None
+    return present[0]
+
+
+def _multiple_of(value: float, step: float, what: str, step_what: str) -> int:
+    n = value / step
+    k = round(n)
+    if k < 1 or abs(n - k) > MULTIPLE_TOL * max(1.0, abs(n)):
+        raise ValueError(f"{what} ({value:g}) must be a multiple of {step_what} ({step:g})")
+    return int(k)
+
+
+def _point(v, where: str) -> np.ndarray:
+    if isinstance(v, np.ndarray):
+        v = v.tolist()
+    if not isinstance(v, (list, tuple)) or len(v) != 2:
+        raise ValueError(f"{where} must be a pair of numbers [a, b], got {v!r}")
+    return np.array([_number(v[0], f"{where}[0]"), _number(v[1], f"{where}[1]")], dtype=float)
+
+
+def _points(v, where: str, *, min_n: int) -> np.ndarray:
+    if isinstance(v, np.ndarray):
+        v = v.tolist()
+    if not isinstance(v, (list, tuple)) or len(v) < min_n:
+        n = len(v) if isinstance(v, (list, tuple)) else type(v).__name__
+        raise ValueError(f"{where} must be a list of at least {min_n} points [a, b] (shape [n >= {min_n}, 2]), "
+                         f"got {n if isinstance(n, str) else f'{n} points'}: {v!r}"[:300])
+    return np.stack([_point(p, f"{where}[{i}]") for i, p in enumerate(v)]).reshape(-1, 2)
+
+
+def _wrap_deg(deg: float) -> float:
+    return (deg + 180.0) % 360.0 - 180.0
+
+
+def _course_rad(deg: float) -> float:
+    """Degrees -> radians in [-pi, pi): wrapped in degrees first (exact for whole degrees), converted once."""
+    return math.radians(_wrap_deg(deg))
+
+
+_AXIS_DIRECTIONS = {0.0: (1.0, 0.0), 90.0: (0.0, 1.0), -90.0: (0.0, -1.0), -180.0: (-1.0, 0.0)}
+
+
+def _direction(deg: float) -> np.ndarray:
+    """Unit vector (north, east) of a course in degrees; exact along the axes (no 1e-16 sine residue)."""
+    w = _wrap_deg(deg)
+    if w in _AXIS_DIRECTIONS:
+        return np.array(_AXIS_DIRECTIONS[w])
+    r = math.radians(w)
+    return np.array([math.cos(r), math.sin(r)])
+
+
+def _speed(d: dict, keys, where: str, *, required: bool, gt=None, ge=None):
+    """m/s from one of (``*_mps``, ``*_kn``); knots converted exactly once (1 kn = 1852/3600 m/s)."""
+    key = _one_of(d, keys, where, required=required)
+    if key is None:
+        return None
+    x = _number(d[key], _path(where, key), gt=gt, ge=ge)
+    # x * 1852 is exact for any speed a file holds, so the result is 1852 x / 3600 correctly rounded
+    return x * 1852.0 / 3600.0 if key.endswith("_kn") else x
+
+
+# ---------------------------------------------------------------------------------------------- YAML
+_YAML12_FLOAT = re.compile(r"""^(?:[-+]?[0-9][0-9_]*(?:\.[0-9_]*)?[eE][-+]?[0-9]+
+                              |[-+]?\.[0-9_]+[eE][-+]?[0-9]+)$""", re.X)
+
+
+class _Loader(yaml.SafeLoader):
+    """Safe YAML loader that refuses duplicate keys (PyYAML keeps the last one silently) and reads YAML 1.2
+    floats such as ``1e3`` (YAML 1.1, and so PyYAML, would read them as strings)."""
+
+    def construct_mapping(self, node, deep=False):
+        if isinstance(node, yaml.MappingNode):
+            self.flatten_mapping(node)
+            seen = set()
+            for key_node, _ in node.value:
+                key = self.construct_object(key_node, deep=deep)
+                try:
+                    dup = key in seen
+                except TypeError:  # unhashable key: let PyYAML report it
+                    continue
+                if dup:
+                    raise ValueError(f"duplicate key {key!r} at line {key_node.start_mark.line + 1}: every key "
+                                     f"may appear only once in a mapping")
+                seen.add(key)
+        return super().construct_mapping(node, deep=deep)
+
+
+_Loader.add_implicit_resolver("tag:yaml.org,2002:float", _YAML12_FLOAT, list("-+0123456789."))
+
+
+def _yaml_load(text: str, where: str):
+    try:
+        return yaml.load(text, Loader=_Loader)  # noqa: S506 -- a SafeLoader subclass
+    except yaml.YAMLError as exc:
+        raise ValueError(f"{where}: not valid YAML ({exc})") from None
+    except ValueError as exc:
+        raise ValueError(f"{where}: {exc}") from None
+
+
+# ---------------------------------------------------------------------------------------------- sections
+def _simulation(d) -> tuple[float, float]:
+    d = _mapping(d, "simulation")
+    _check_keys(d, _SIM_KEYS, "simulation", required=_SIM_KEYS)
+    dt = _number(d["dt_s"], "simulation.dt_s", gt=0)
+    duration = _number(d["duration_s"], "simulation.duration_s", gt=0)
+    _multiple_of(duration, dt, "simulation.duration_s", "simulation.dt_s")
+    return dt, duration
+
+
+def _monte_carlo(d) -> tuple[int, int]:
+    d = _mapping(d, "monte_carlo")
+    _check_keys(d, _MC_KEYS, "monte_carlo")
+    runs = _integer(d.get("runs", 20), "monte_carlo.runs", ge=1)
+    seed = _integer(d.get("seed", 0), "monte_carlo.seed", ge=0)
+    return runs, seed
+
+
+def _value_sets(v, where: str, *, lo: float, hi: float) -> tuple[tuple[float, ...], ...]:
+    if not isinstance(v, (list, tuple)) or not v:
+        raise ValueError(f"{where} must be a non-empty list with one list of values per maneuver, got {v!r}")
+    out = []
+    for m, s in enumerate(v):
+        w = f"{where}[{m}]"
+        if not isinstance(s, (list, tuple)) or not s:
+            raise ValueError(f"{w} must be a non-empty list of numbers, got {s!r}")
+        out.append(tuple(_number(x, f"{w}[{i}]", ge=lo, le=hi) for i, x in enumerate(s)))
+    return tuple(out)
+
+
+def _mpc(d, dt: float) -> MPCSpec:
+    from .presets import PRESETS, build_mpc
+
+    d = _mapping(d, "mpc")
+    _check_keys(d, _MPC_KEYS, "mpc", required=("preset", "update_period_s"))
+    preset = d["preset"]
+    if not isinstance(preset, str) or preset not in PRESETS:
+        raise ValueError(f"mpc.preset must be one of {sorted(PRESETS)}, got {preset!r}")
+    period = _number(d["update_period_s"], "mpc.update_period_s", gt=0)
+    _multiple_of(period, dt, "mpc.update_period_s", "simulation.dt_s")
+    n_ps = d.get("n_ps", getattr(PRESETS[preset], "n_ps", 5))
+    if isinstance(n_ps, bool) or not isinstance(n_ps, numbers.Integral) or n_ps < 1 or n_ps % 2 == 0:
+        raise ValueError(f"mpc.n_ps must be an odd integer >= 1, got {n_ps!r}")
+
+    config = dict(_mapping(d.get("config", {}) or {}, "mpc.config"))
+    params_in = dict(_mapping(d.get("params", {}) or {}, "mpc.params"))
+    params = {}
+    for k, v in params_in.items():
+        if k == "wind_dir":
+            raise ValueError("mpc.params.wind_dir: angles in scenario files are in degrees; use wind_dir_deg "
+                             "(direction the wind blows towards, from north, clockwise)")
+        if k == "wind_dir_deg":
+            params["wind_dir"] = _course_rad(_number(v, "mpc.params.wind_dir_deg"))
+        elif k == "t_ts" and _is_number(v) and math.isnan(float(v)):
+            params[k] = float("nan")  # nan = T / n_M, the documented default
+        else:
+            params[k] = _number(v, f"mpc.params.{k}")
+    has_s, has_c = "speed_factors" in d, "course_offsets_deg" in d
+    if has_s != has_c:
+        raise ValueError("mpc.speed_factors and mpc.course_offsets_deg must be given together (one set of each "
+                         "per maneuver)")
+    speeds = courses = None
+    if has_s:
+        speeds = _value_sets(d["speed_factors"], "mpc.speed_factors", lo=0.0, hi=1.0)
+        courses = _value_sets(d["course_offsets_deg"], "mpc.course_offsets_deg", lo=-180.0, hi=180.0)
+        if len(speeds) != len(courses):
+            raise ValueError(f"mpc.speed_factors and mpc.course_offsets_deg need one set per maneuver, got "
+                             f"{len(speeds)} and {len(courses)} sets")
+    try:
+        cfg, prm, behaviours = build_mpc(preset, config, params, speeds, courses)
+    except (ValueError, TypeError) as exc:
+        raise ValueError(f"mpc ({preset!r} with the file's overrides): {exc}") from None
+    return MPCSpec(preset=preset, config=cfg, params=prm, behaviours=np.asarray(behaviours, dtype=float),
+                   n_ps=int(n_ps), period=period)
+
+
+def _sensor(d, dt: float) -> SensorSpec:
+    d = _mapping(d, "sensor")
+    _check_keys(d, _SENSOR_KEYS, "sensor")
+    base = SensorSpec()
+    kw = {}
+    if "position_std_m" in d:
+        kw["position_std"] = _number(d["position_std_m"], "sensor.position_std_m", gt=0)
+    if "period_s" in d:
+        kw["period"] = _number(d["period_s"], "sensor.period_s", gt=0)
+    _multiple_of(kw.get("period", base.period), dt,
+                 "sensor.period_s" if "period" in kw else "sensor.period_s (not given: the default)", "simulation.dt_s")
+    if "filter_R_scale" in d:
+        kw["filter_R_scale"] = _number(d["filter_R_scale"], "sensor.filter_R_scale", ge=1)
+    if "sigma_a_mps2" in d:
+        kw["sigma_a"] = _number(d["sigma_a_mps2"], "sensor.sigma_a_mps2", ge=0)
+    u_max = _speed(d, ("U_max_mps", "U_max_kn"), "sensor", required=False, gt=0)
+    if u_max is not None:
+        kw["U_max"] = u_max
+    if "colav_target_cov" in d:
+        c = _mapping(d["colav_target_cov"], "sensor.colav_target_cov")
+        _check_keys(c, _COV_KEYS, "sensor.colav_target_cov")
+        pv = _number(c.get("position_var_m2", base.colav_target_cov[0]), "sensor.colav_target_cov.position_var_m2",
+                     gt=0)
+        vv = _number(c.get("velocity_var_m2s2", base.colav_target_cov[1]),
+                     "sensor.colav_target_cov.velocity_var_m2s2", gt=0)
+        kw["colav_target_cov"] = (pv, vv)
+    return SensorSpec(**kw)
+
+
+# ---------------------------------------------------------------------------------------------- charts
+@lru_cache(maxsize=8)
+def _builtin_chart(name: str, origin, zone):
+    from .charts import load_chart
+
+    return load_chart(name, origin, zone=zone)
+
+
+def _inline_polygons(v) -> list[Polygon]:
+    where = "chart.polygons_m"
+    if not isinstance(v, (list, tuple)) or not v:
+        raise ValueError(f"{where} must be a non-empty list of polygons, each a list of >= 3 points [north, east]")
+    out = []
+    for j, ring in enumerate(v):
+        w = f"{where}[{j}]"
+        pts = _points(ring, w, min_n=3)
+        if len(pts) > 3 and np.array_equal(pts[0], pts[-1]):
+            pts = pts[:-1]  # an explicitly closed ring: the closing point repeats the first one
+        same = np.flatnonzero(np.all(pts == np.roll(pts, -1, axis=0), axis=1))
+        if same.size:
+            raise ValueError(f"{w}: vertex {int(same[0])} repeats the next one; a polygon needs distinct "
+                             f"consecutive vertices")
+        if len(pts) < 3:
+            raise ValueError(f"{w}: a polygon needs at least 3 distinct vertices, got {len(pts)}")
+        poly = Polygon(pts)
+        if not poly.is_valid or poly.area <= 0.0:
+            why = shapely.validation.explain_validity(poly) if not poly.is_valid else "zero area"
+            raise ValueError(f"{w} is not a valid simple polygon ({why}); give one non-self-intersecting exterior "
+                             f"ring with non-zero area")
+        out.append(poly)
+    return out
+
+
+def _chart_source(d, base_dir):
+    """-> (Chart or None, inline polygons or None, info dict, settings) before ships are known."""
+    d = _mapping(d, "chart")
+    _check_keys(d, _CHART_KEYS, "chart")
+    sources = [k for k in ("builtin", "file", "polygons_m") if k in d]
+    if len(sources) != 1:
+        raise ValueError(f"chart needs exactly one land source of builtin / file / polygons_m, got "
+                         f"{sources or 'none'} (leave the chart section out for open water)")
+    src = sources[0]
+    rdp_eps = _number(d["rdp_eps_m"], "chart.rdp_eps_m", gt=0) if "rdp_eps_m" in d else None
+    clip = _number(d["clip_m"], "chart.clip_m", gt=0) if "clip_m" in d else None
+    if src == "polygons_m":
+        for k in ("origin_utm", "rdp_eps_m"):
+            if k in d:
+                raise ValueError(f"chart.{k} applies only to builtin / file charts, not to chart.polygons_m "
+                                 f"(inline polygons are already in local NED metres)")
+        polys = _inline_polygons(d["polygons_m"])
+        info = dict(source="inline chart.polygons_m", origin=None, crs=None)
+        return None, polys, info, rdp_eps, clip
+    origin = zone = None
+    if "origin_utm" in d:
+        o = _mapping(d["origin_utm"], "chart.origin_utm")
+        _check_keys(o, _ORIGIN_KEYS, "chart.origin_utm", required=("east", "north"))
+        origin = (_number(o["east"], "chart.origin_utm.east"), _number(o["north"], "chart.origin_utm.north"))
+        if "zone" in o:
+            zone = o["zone"]
+            if isinstance(zone, bool) or not isinstance(zone, numbers.Integral) or not 1 <= zone <= 60:
+                raise ValueError(f"chart.origin_utm.zone must be a UTM zone, an integer in 1..60, got {zone!r}")
+            zone = int(zone)
+    if src == "builtin":
+        name = d["builtin"]
+        if not isinstance(name, str) or name.lower() not in _BUILTIN_CHARTS:
+            raise ValueError(f"chart.builtin must be one of {list(_BUILTIN_CHARTS)}, got {name!r}")
+        try:
+            chart = _builtin_chart(name.lower(), origin, zone)
+        except ValueError as exc:
+            raise ValueError(f"chart.builtin {name!r}: {exc}") from None
+        source = f"builtin:{name.lower()} ({chart.source})"
+    else:
+        from .charts import load_chart
+
+        f = d["file"]
+        if not isinstance(f, str) or not f.strip():
+            raise ValueError(f"chart.file must be a path (relative to the scenario file), got {f!r}")
+        p = pathlib.Path(f).expanduser()
+        if not p.is_absolute():
+            p = pathlib.Path(base_dir if base_dir is not None else ".") / p
+        if not p.exists() and not p.with_suffix(".shp").exists():
+            raise ValueError(f"chart.file {f!r}: not found ({p}); the path is relative to the scenario file's "
+                             f"folder")
+        try:
+            chart = load_chart(p, origin, zone=zone)
+        except (ValueError, FileNotFoundError) as exc:
+            raise ValueError(f"chart.file {f!r}: {exc}") from None
+        source = str(p)
+    info = dict(source=source, origin=tuple(chart.origin), crs=chart.crs)
+    return chart, None, info, rdp_eps, clip
+
+
+def _areal_parts(geom) -> tuple[list[Polygon], int]:
+    """Polygon parts of an intersection, and how many non-areal (line / point) or empty parts were dropped."""
+    parts, dropped = [], 0
+    for g in shapely.get_parts(geom):
+        if isinstance(g, Polygon) and not g.is_empty and g.area > 0.0:
+            parts.append(g)
+        elif isinstance(g, (MultiPolygon, shapely.GeometryCollection)) and not g.is_empty:
+            p, k = _areal_parts(g)
+            parts += p
+            dropped += k
+        else:
+            dropped += 1
+    return parts, dropped
+
+
+def _count_vertices(polys) -> int:
+    """Vertices of all rings (holes included, closing vertices not counted)."""
+    return int(sum(len(p.exterior.coords) - 1 + sum(len(r.coords) - 1 for r in p.interiors) for p in polys))
+
+
+def _route_geometry(ship: ShipSpec):
+    pts = np.vstack([ship.position[None, :], ship.waypoints])
+    keep = np.r_[True, np.any(pts[1:] != pts[:-1], axis=1)]
+    pts = pts[keep]
+    return Point(pts[0]) if len(pts) == 1 else LineString(pts)
+
+
+def _clip(polys: list[Polygon], ships, clip_m: float) -> tuple[list[Polygon], dict]:
+    """Keep the land within ``clip_m`` of every ship's start and route (shapely buffer, CLIP_QUAD_SEGS)."""
+    region = shapely.union_all([_route_geometry(s).buffer(clip_m, quad_segs=CLIP_QUAD_SEGS) for s in ships])
+    shapely.prepare(region)
+    out, removed, clipped, dropped = [], 0, 0, 0
+    for p in polys:
+        if not region.intersects(p):
+            removed += 1
+            continue
+        if region.contains(p):
+            out.append(p)
+            continue
+        parts, k = _areal_parts(p.intersection(region))
+        clipped += 1
+        dropped += k
+        if not parts:
+            removed += 1
+        out += parts
+    return out, dict(clip_removed=removed, clip_clipped=clipped, clip_dropped_parts=dropped)
+
+
+# ---------------------------------------------------------------------------------------------- ships
+def _ship(d, where: str, *, own: bool, ctx: dict) -> ShipSpec:
+    d = _mapping(d, where)
+    _check_keys(d, _SHIP_KEYS, where, required=("name", "course_deg"))
+    name = _string(d["name"], f"{where}.name")
+    chart = ctx["chart"]
+
+    def utm_allowed(key):
+        if chart is None:
+            raise ValueError(f"{where}.{key}: UTM coordinates need a builtin or file chart (its origin converts "
+                             f"them to local NED); use {key.replace('_utm', '_m')} [north, east] instead")
+
+    pkey = _one_of(d, ("position_m", "position_utm"), where, required=True)
+    pos = _point(d[pkey], f"{where}.{pkey}")
+    if pkey == "position_utm":
+        utm_allowed(pkey)
+        pos = chart.utm_to_local(pos)
+    course_deg = _number(d["course_deg"], f"{where}.course_deg")
+    course = _course_rad(course_deg)
+    speed = _speed(d, ("speed_mps", "speed_kn"), where, required=True, ge=0)
+    U_d = _speed(d, ("nominal_speed_mps", "nominal_speed_kn"), where, required=False, ge=0)
+    U_d = speed if U_d is None else U_d
+
+    colav = d.get("colav", "psbmpc" if own else "none")
+    if colav not in COLAV_MODES:
+        raise ValueError(f"{where}.colav must be one of {COLAV_MODES}, got {colav!r}")
+    if colav == "psbmpc" and not U_d > 0:
+        raise ValueError(f"{where}: a ship with colav psbmpc needs a nominal speed > 0 (nominal_speed_mps, "
+                         f"default the initial speed), got {U_d:g} m/s")
+
+    plan = None
+    if "speed_plan" in d:
+        sp = d["speed_plan"]
+        if not isinstance(sp, (list, tuple)) or not sp:
+            raise ValueError(f"{where}.speed_plan must be a non-empty list of {{t_s, speed_mps | speed_kn}} "
+                             f"(leave it out for a constant nominal speed), got {sp!r}")
+        rows = []
+        for i, e in enumerate(sp):
+            w = f"{where}.speed_plan[{i}]"
+            e = _mapping(e, w)
+            _check_keys(e, _PLAN_KEYS, w, required=("t_s",))
+            t = _number(e["t_s"], f"{w}.t_s", ge=0)
+            if t >= ctx["duration"]:
+                raise ValueError(f"{w}.t_s ({t:g}) must be < simulation.duration_s ({ctx['duration']:g}); a "
+                                 f"later entry would never apply")
+            if rows and not t > rows[-1][0]:
+                raise ValueError(f"{w}.t_s ({t:g}) must be greater than the previous entry's ({rows[-1][0]:g}); "
+                                 f"speed_plan times must increase strictly")
+            rows.append((t, _speed(e, ("speed_mps", "speed_kn"), w, required=True, ge=0)))
+        plan = np.array(rows, dtype=float)
+
+    wkey = _one_of(d, ("waypoints_m", "waypoints_utm"), where, required=False)
+    if wkey is None:
+        U_max = max([speed, U_d] + ([] if plan is None else list(plan[:, 1])))
+        length = max(2.0 * U_max * ctx["duration"], DEFAULT_ROUTE_MIN_M)
+        wps = np.stack([pos, pos + length * _direction(course_deg)])
+    else:
+        wps = _points(d[wkey], f"{where}.{wkey}", min_n=1)
+        if wkey == "waypoints_utm":
+            utm_allowed(wkey)
+            wps = chart.utm_to_local(wps)
+        if len(wps) == 1:
+            wps = np.vstack([pos[None, :], wps])
+        same = np.flatnonzero(np.all(wps[1:] == wps[:-1], axis=1))
+        if same.size:
+            k = int(same[0])
+            raise ValueError(f"{where}.{wkey}: route points {k} and {k + 1} coincide ({wps[k].tolist()}); a route "
+                             f"needs distinct consecutive points (with one point given, the start position is "
+                             f"prepended)")
+
+    prm = ctx["params"]
+    pre = "os_" if own else "ob_"
+
+    def opt(key, default, **bounds):
+        return _number(d[key], f"{where}.{key}", **bounds) if key in d else float(default)
+
+    return ShipSpec(
+        name=name, position=pos, course=course, speed=speed, waypoints=np.asarray(wps, dtype=float), U_d=U_d,
+        speed_plan=plan,
+        length=opt("length_m", 5.0, gt=0), width=opt("width_m", 3.0, gt=0),
+        T_chi=opt("T_chi_s", getattr(prm, pre + "T_chi"), gt=0), T_U=opt("T_U_s", getattr(prm, pre + "T_U"), gt=0),
+        lookahead=opt("lookahead_m", getattr(prm, pre + "lookahead"), gt=0),
+        R_a=opt("R_a_m", getattr(prm, pre + "R_a"), ge=0),
+        colav=colav,
+    )
+
+
+# ---------------------------------------------------------------------------------------------- public API
+def scenario_from_dict(data: dict, base_dir=None, source: str | None = None) -> Scenario:
+    """Validate a scenario mapping (the parsed YAML, schema in ``docs/scenarios.md``) and build a
+    :class:`Scenario` in SI units, radians and the local NED frame.
+
+    Args:
+        data: the mapping; not modified.
+        base_dir: folder that ``chart.file`` is relative to (default: the current directory).
+        source: recorded in ``Scenario.source`` (the file path).
+
+    Raises:
+        ValueError: unknown or missing keys, wrong types, non-finite numbers, values out of range, unit
+            alternatives given twice, times that are not multiples of ``simulation.dt_s``, bad overrides, bad
+            charts -- the message names the key and says what is allowed.
+    """
+    data = copy.deepcopy(_mapping(data, "the scenario"))
+    _check_keys(data, _TOP_KEYS, "the scenario (top level)", required=_TOP_REQUIRED)
+    name = _string(data["name"], "name")
+    description = data.get("description", "")
+    if not isinstance(description, str):
+        raise ValueError(f"description must be a string, got {description!r}")
+    dt, duration = _simulation(data["simulation"])
+    runs, seed = _monte_carlo(data.get("monte_carlo", {}) or {})
+    mpc = _mpc(data["mpc"], dt)
+    sensor = _sensor(data.get("sensor", {}) or {}, dt)
+    coll = None
+    if "collision_distance_m" in data:
+        coll = _number(data["collision_distance_m"], "collision_distance_m", gt=0)
+
+    chart = inline = None
+    info = dict(source=None, origin=None, crs=None)
+    rdp_eps = clip = None
+    if "chart" in data:
+        chart, inline, info, rdp_eps, clip = _chart_source(data["chart"], base_dir)
+
+    ctx = dict(chart=chart, duration=duration, params=mpc.params)
+    own = _ship(data["own_ship"], "own_ship", own=True, ctx=ctx)
+    tl = data.get("targets", [])
+    if tl is None:
+        tl = []
+    if not isinstance(tl, (list, tuple)):
+        raise ValueError(f"targets must be a list of ships, got {type(tl).__name__}")
+    targets = tuple(_ship(t, f"targets[{i}]", own=False, ctx=ctx) for i, t in enumerate(tl))
+    seen = {own.name: "own_ship"}
+    for i, t in enumerate(targets):
+        if t.name in seen:
+            raise ValueError(f"duplicate ship name {t.name!r} ({seen[t.name]} and targets[{i}]); ship names must "
+                             f"be unique")
+        seen[t.name] = f"targets[{i}]"
+
+    # land: loaded -> RDP (builtin / file charts) -> clip about the routes -> ring sets
+    polys: list[Polygon] = list(chart.polygons) if chart is not None else list(inline or ())
+    info.update(n_polygons_loaded=len(polys), n_vertices_loaded=_count_vertices(polys))
+    if chart is not None and rdp_eps is not None:
+        from .rdp import simplify_chart
+
+        chart = simplify_chart(chart, rdp_eps)
+        polys = list(chart.polygons)
+        info.update(n_vertices_rdp=_count_vertices(polys),
+                    rdp_degenerate_kept=int(chart.report.get("rdp_degenerate_kept", 0)),
+                    rdp_holes_dropped=int(chart.report.get("rdp_holes_dropped", 0)))
+    if clip is not None:
+        polys, clip_info = _clip(polys, (own,) + targets, clip)
+        info.update(clip_info)
+    from .charts import to_ring_sets
+
+    rings = tuple(tuple(np.asarray(r, dtype=float) for r in rs) for rs in to_ring_sets(polys)) if polys else ()
+    info.update(rdp_eps_m=rdp_eps, clip_m=clip, n_polygons=len(rings),
+                n_vertices=int(sum(len(r) for rs in rings for r in rs)))
+    return Scenario(name=name, description=description, own_ship=own, targets=targets, sensor=sensor, mpc=mpc,
+                    polygons=rings, chart_info=info, dt=dt, duration=duration, runs=runs, seed=seed,
+                    collision_distance=coll, source=source)
+
+
+def builtin_scenarios() -> list[str]:
+    """Sorted names of the scenario files shipped in ``psbmpc_jax/scenarios/`` (``*.yaml``, ``*.yml``)."""
+    if not SCENARIO_DIR.is_dir():
+        return []
+    return sorted({p.stem for p in SCENARIO_DIR.iterdir() if p.suffix in (".yaml", ".yml") and p.is_file()})
+
+
+def _builtin_path(name: str) -> pathlib.Path:
+    for ext in (".yaml", ".yml"):
+        p = SCENARIO_DIR / f"{name}{ext}"
+        if p.is_file():
+            return p
+    raise ValueError(f"unknown built-in scenario {name!r}; built-in scenarios: {', '.join(builtin_scenarios())} "
+                     f"(or give the path of a .yaml / .yml file)")
+
+
+def load_scenario(path_or_name) -> Scenario:
+    """Load and validate a scenario: a path to a ``.yaml`` / ``.yml`` file, or the name of a built-in scenario
+    (:func:`builtin_scenarios`, e.g. ``"head_on"``, ``"imazu_01"``).
+
+    Raises:
+        ValueError: unknown built-in name (the message lists them), invalid YAML or an invalid scenario.
+        FileNotFoundError: a ``.yaml`` / ``.yml`` path that does not exist.
+    """
+    if isinstance(path_or_name, os.PathLike):
+        s = os.fspath(path_or_name)
+        path_like = True
+    elif isinstance(path_or_name, str) and path_or_name.strip():
+        s = path_or_name
+        path_like = s.lower().endswith((".yaml", ".yml")) or "/" in s or os.sep in s
+    else:
+        raise ValueError(f"load_scenario needs a .yaml/.yml path or a built-in scenario name "
+                         f"({', '.join(builtin_scenarios())}), got {path_or_name!r}")
+    if path_like:
+        path = pathlib.Path(s).expanduser()
+        if path.suffix.lower() not in (".yaml", ".yml"):
+            raise ValueError(f"scenario files must end in .yaml or .yml, got {s!r}")
+        if not path.is_file():
+            raise FileNotFoundError(f"scenario file not found: {path}")
+    else:
+        path = _builtin_path(s)
+    where = str(path)
+    data = _yaml_load(path.read_text(encoding="utf-8"), where)
+    if not isinstance(data, dict):
+        raise ValueError(f"{where}: a scenario file must hold a mapping at the top level, got "
+                         f"{type(data).__name__}")
+    try:
+        return scenario_from_dict(data, base_dir=path.parent, source=where)
+    except ValueError as exc:
+        raise ValueError(f"{where}: {exc}") from None
