@@ -53,7 +53,7 @@ def plot_map(result, run: int = 0, ax=None, n_instants: int = 5, ship_scale: flo
     states = result.states[run]
     xy = states[..., :2]
     span = float(np.max(np.ptp(xy.reshape(-1, 2), axis=0))) or 1.0
-    scale = ship_scale or max(1.0, 0.04 * span / max(s.length for s in sc.ships))
+    scale = ship_scale or max(1.0, 0.025 * span / max(s.length for s in sc.ships))
     _draw_land(ax, sc.polygons)
     snap = result.snapshot
     if snap is not None and snap["run"] == run:
