@@ -70,7 +70,7 @@ ESTIMATORS = ("quadrature", "mc", "ce")
 FIELDS = ("schema", "sweep", "swept", "impl", "platform", "device_kind", "n_devices", "host", "estimator", "dtype",
           "grounding_mode", "n_M", "n_cbs", "n_do", "n_ps", "n_so", "n_vertices", "n_ct", "T", "dt", "compile_s",
           "times_ms", "median_ms", "min_ms", "max_ms", "q1_ms", "q3_ms", "peak_memory_bytes", "memory_source",
-          "best", "skipped", "skip_reason", "versions", "commit", "timestamp")
+          "best", "n_pc_blocks", "skipped", "skip_reason", "versions", "commit", "timestamp")
 
 #: (swept, values, fixed settings) per preset figure.
 PRESETS = {
@@ -426,7 +426,8 @@ class Runner:
         else:
             rec.update(peak_memory_bytes=max(0, peak_rss_bytes() - rss0), memory_source="process_rss")
         rec.update(platform=dev.platform, device_kind=dev.device_kind, n_devices=len(devices) if multi else 1,
-                   compile_s=round(compile_s, 4), best=int(ev.best), **stats_ms(times))
+                   compile_s=round(compile_s, 4), best=int(ev.best), n_pc_blocks=int(ev.n_pc_blocks),
+                   **stats_ms(times))
         return rec
 
     def run_reference(self, p, situation, behaviours, config, samples) -> dict:

@@ -181,3 +181,24 @@ def test_cli_report_subcommand(tmp_path):
     text = (tmp_path / "rep" / "report.md").read_text()
     assert "crossover" in text.lower() and (tmp_path / "rep" / "fig5.png").stat().st_size > 10_000
     assert main(["report", str(tmp_path / "missing.jsonl"), "--out", str(tmp_path / "x")]) != 0
+
+
+def test_work_fit_section_from_n_pc_blocks(tmp_path):
+    """n_ps sweeps with recorded n_pc_blocks get a runtime-vs-work fit; a perfectly linear model gives R² = 1."""
+    recs = [json.loads(line) for line in CPU.read_text().splitlines() if line.strip()]
+    fig7 = [r for r in recs if r["sweep"] == "fig7" and r["impl"] == "jax" and not r["skipped"]]
+    assert len(fig7) >= 3
+    for k, r in enumerate(fig7):
+        r["n_pc_blocks"] = 1000 * (k + 1)
+        r["median_ms"] = 5.0 + 0.002 * r["n_pc_blocks"]
+        r["times_ms"] = [r["median_ms"]] * 3
+        r["min_ms"] = r["max_ms"] = r["q1_ms"] = r["q3_ms"] = r["median_ms"]
+    path = tmp_path / "w.jsonl"
+    path.write_text("".join(json.dumps(r) + "\n" for r in fig7))
+    md = report.write_report(report.load_results([path]), tmp_path / "out").read_text()
+    assert "## Runtime vs evaluated collision work (n_ps sweeps)" in md
+    row = next(line for line in md.splitlines() if line.startswith("| fig7 | JAX-CPU |"))
+    assert row.endswith("| 1.0000 |") and "| 2 |" in row      # slope 2 µs/block, R² = 1
+    # files without the field (older results) render without the section
+    md_old = report.write_report(report.load_results([CPU]), tmp_path / "old").read_text()
+    assert "evaluated collision work" not in md_old
