@@ -152,7 +152,7 @@ def run_scenarios(args, parser) -> int:
         selected += hits
     enable_compilation_cache()
     from .sim import simulate
-    from .sim.output import write_outputs
+    from .sim.output import write_index, write_outputs
 
     failures = 0
     for item in selected:
@@ -172,6 +172,8 @@ def run_scenarios(args, parser) -> int:
               f"any-ship groundings {s['any_ship_groundings']}; closest approach "
               + json.dumps({tg["name"]: tg["min_distance_m"]["min"] for tg in s["targets"]})
               + f"; results in {out}/")
+    index = write_index(args.out)
+    print(f"index of every scenario under {args.out}: {index}")
     return 1 if failures else 0
 
 

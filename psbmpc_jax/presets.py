@@ -53,9 +53,13 @@ PRESETS: dict[str, MPCPreset] = {
     "open_sea": MPCPreset(
         name="open_sea",
         description="Open sea (Imazu cases, 10 m/s ships): T 300 s, dt 1 s, r_ct 50 m, d_safe 100 m, "
-                    "d_close 1500 m, course offsets +-90 deg in 15 deg steps, 1014 behaviours",
+                    "d_close 500 m, K_chi_port 6, course offsets +-90 deg in 15 deg steps, 1014 behaviours",
         config=PlannerConfig(T=300.0, dt=1.0),
-        params=Params(r_ct=50.0, d_safe=100.0, d_close=1500.0, T_d=200.0, os_lookahead=500.0, ob_lookahead=500.0,
+        # d_close 500 m and K_chi_port 6 (4x starboard): with d_close 1500 m and the default 1.8 the cheapest way
+        # to clear the COLREGS indicator of a crossing target from starboard was a small port turn that merely
+        # pushed the crossing beyond the horizon (measured: first alteration to port in Imazu 02, 05, 09, 14,
+        # 16); with these values they turn to starboard (docs/simulation.md, "Presets and tuning")
+        params=Params(r_ct=50.0, d_safe=100.0, d_close=500.0, K_chi_port=6.0, T_d=200.0, os_lookahead=500.0, ob_lookahead=500.0,
                       os_R_a=50.0, ob_R_a=50.0, os_T_chi=5.0, os_T_U=10.0, ob_T_chi=5.0, ob_T_U=10.0),
         speed_sets=PAPER_SPEEDS,
         course_sets_deg=(SAKSHAUG_COURSES_DEG, SAKSHAUG_COURSES_DEG),

@@ -114,3 +114,35 @@ def write_outputs(result, out_dir, *, figures: bool = True) -> dict:
         for p in write_figures(result, out):
             paths[p.stem] = p
     return paths
+
+
+def write_index(out_dir) -> pathlib.Path:
+    """``index.md`` over every ``*/metrics.json`` under ``out_dir``: one row per scenario with its runs,
+    collisions, groundings, the closest approach to any target and to land, COLREGS compliance and the
+    median amortised solve time."""
+    out = pathlib.Path(out_dir)
+    rows = []
+    for path in sorted(out.glob("*/metrics.json")):
+        doc = json.loads(path.read_text())
+        s = doc["summary"]
+        tmin = [t["min_distance_m"]["min"] for t in s["targets"] if t["min_distance_m"]["min"] is not None]
+        land = s["min_distance_land_m"]["min"]
+        n_ok, n_eval = s.get("n_compliant", 0), s.get("n_compliance_evaluated", 0)
+        solve = s.get("solve_wall_s_amortised_median")
+        rows.append(
+            f"| [{s['scenario']}]({path.parent.name}/summary.md) | {s['runs']} | {len(s['targets'])} | "
+            f"{s['collisions']} | {s['groundings']} | {s['pair_collision_runs']} | "
+            f"{min(tmin):.1f} | " + ("—" if land is None else f"{land:.1f}") + " | "
+            + (f"{n_ok}/{n_eval}" if n_eval else "n/a") + " | "
+            + ("—" if solve is None else f"{1e3 * solve:.1f}") + f" | {doc.get('commit', '?')[:9]} |")
+    text = "\n".join([
+        "# Closed-loop results", "",
+        "Written by `psbmpc-jax run` (one folder per scenario: metrics.json, summary.md, figures). Collisions: "
+        "own-ship runs with a centre distance below the collision distance; pair collisions: runs in which two "
+        "ships of which one runs PSB-MPC collided; COLREGS: runs × targets whose encounter the own-ship's "
+        "manoeuvre matched, of those with an obligation (see docs/simulation.md).", "",
+        "| scenario | runs | targets | collisions | groundings | pair collisions | closest approach [m] | "
+        "closest to land [m] | COLREGS matched | solve [ms] | commit |",
+        "|---|---|---|---|---|---|---|---|---|---|---|", *rows, ""])
+    (out / "index.md").write_text(text)
+    return out / "index.md"
