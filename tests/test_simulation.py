@@ -83,7 +83,10 @@ def test_vmap_batch_equals_loop():
     np.testing.assert_allclose(loop.best_costs, vm.best_costs, rtol=1e-4, atol=1e-5)
     np.testing.assert_array_equal(loop.states, vm.states)
     assert vm.summary["batch_mode"] == "vmap" and loop.summary["batch_mode"] == "loop"
-    assert all(c["solves"] == 2 for c in vm.calls)
+    assert all(c["solves"] == 2 and c["device_calls"] == 1 for c in vm.calls)
+    assert all(c["solves"] == 2 and c["device_calls"] == 2 for c in loop.calls)
+    assert vm.summary["device_calls"] == vm.summary["mpc_updates"] == len(vm.calls)
+    assert loop.summary["device_calls"] == 2 * loop.summary["mpc_updates"] == loop.summary["solves"]
 
 
 def test_stack_arrays_pads_waypoints():

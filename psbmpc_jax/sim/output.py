@@ -71,7 +71,7 @@ def summary_markdown(result) -> str:
              f"runs where any pair of ships collided: {s['pair_collision_runs']}; runs where any ship grounded: "
              f"{s['any_ship_groundings']}",
              f"- device: {s['device']} ({s['platform']}), batch mode `{s['batch_mode']}`, {s['solves']} solves in "
-             f"{s['device_calls']} device calls, median amortised solve time "
+             f"{s['device_calls']} device calls ({s['mpc_updates']} MPC updates), median amortised solve time "
              f"{_fmt(None if s['solve_wall_s_amortised_median'] is None else 1e3 * s['solve_wall_s_amortised_median'])} ms",
              ""]
     if s.get("grid_region_exceeded"):

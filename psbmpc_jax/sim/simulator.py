@@ -56,7 +56,8 @@ class SimulationResult:
         offsets: applied (speed factor, course offset [rad]) ``[R, n_ships, M, 2]`` (nan for ships without
             PSB-MPC).
         best_costs: cost terms of the chosen behaviour ``[R, n_ships, M, 5]`` (total, do, colregs, so, path).
-        calls: one dict per device call: time, number of solves, wall time [s].
+        calls: one dict per MPC update: time, number of solves, number of device calls (1 with vmap, one per
+            solve in the loop), wall time of all of them [s].
         snapshot: one solve of run ``snapshot_run``'s own-ship kept in full (all candidate trajectories and
             their costs) for the paper-Fig.-1-style plot: the first solve that chose to manoeuvre.
         metrics: per-run metrics (:func:`psbmpc_jax.sim.metrics.run_metrics` plus per-ship land distances
@@ -294,7 +295,8 @@ def simulate(scenario: Scenario, *, runs: int | None = None, seed: int | None = 
                 host = jax.device_get(outs)
                 best, costs = np.array([b for b, _ in host]), np.stack([c for _, c in host])
             wall = time.perf_counter() - t0
-            calls.append({"t_s": float(t[k]), "solves": len(jobs), "wall_s": wall})
+            calls.append({"t_s": float(t[k]), "solves": len(jobs), "device_calls": 1 if mode == "vmap" else len(jobs),
+                          "wall_s": wall})
             for n, (r, i) in enumerate(jobs):
                 u, c = mpc.behaviours[int(best[n])][0]
                 u_c[r, i], chi_off[r, i] = u, c
@@ -382,7 +384,8 @@ def summarize(result: SimulationResult, *, mode: str, grid_exceeded: bool | None
         "batch_mode": mode,
         "device": str(jax.devices()[0].device_kind),
         "platform": jax.default_backend(),
-        "device_calls": len(result.calls),
+        "mpc_updates": len(result.calls),
+        "device_calls": int(sum(c["device_calls"] for c in result.calls)),
         "solves": int(sum(c["solves"] for c in result.calls)),
         "call_wall_s_median": float(np.median(walls)) if walls.size else None,
         "solve_wall_s_amortised_median": float(np.median(per_solve)) if per_solve.size else None,
