@@ -38,7 +38,7 @@ def test_readme_commands_match_ci():
     assert test_cmd in text
     # .ci/run runs the same two steps
     assert 'python3 -m pip install -q -e ".[test]"' in ci and "python3 -m pytest -q" in ci
-    assert "python3 -m pip install -e . && psbmpc-jax" in text
+    assert "python3 -m pip install -e . && psbmpc-jax run nidelva" in text
 
 
 def test_readme_charts_example_runs():
