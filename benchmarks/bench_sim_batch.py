@@ -36,7 +36,7 @@ def main(argv=None) -> int:
     sc = dataclasses.replace(load_scenario(args.scenario), duration=args.duration)
     points = []
     for runs in (int(v) for v in args.runs.split(",")):
-        chosen = {}
+        chosen, states = {}, {}
         for mode in ("loop", "vmap"):
             simulate(dataclasses.replace(sc, duration=4 * sc.mpc.period), runs=runs, batch=mode)   # compile
             t0 = time.perf_counter()
@@ -45,6 +45,7 @@ def main(argv=None) -> int:
             calls = np.array([c["wall_s"] for c in res.calls])
             solves = int(sum(c["solves"] for c in res.calls))
             chosen[mode] = res.offsets
+            states[mode] = res.states
             point = {"scenario": sc.name, "runs": runs, "mode": mode, "simulated_s": sc.duration,
                      "mpc_updates": len(res.calls), "solves": solves,
                      "device_calls": int(sum(c["device_calls"] for c in res.calls)),
@@ -53,9 +54,12 @@ def main(argv=None) -> int:
                      "ms_per_update_median": round(1e3 * float(np.median(calls)), 3)}
             points.append(point)
             print(point, flush=True)
-        same = bool(np.array_equal(chosen["loop"], chosen["vmap"]))
+        # offsets hold nan for ships without PSB-MPC: compare with equal_nan
+        same = bool(np.array_equal(chosen["loop"], chosen["vmap"], equal_nan=True))
+        same_states = bool(np.array_equal(states["loop"], states["vmap"]))
         for p in points[-2:]:
             p["same_manoeuvres_as_other_mode"] = same
+            p["same_trajectories_as_other_mode"] = same_states
     meta = environment_meta("sim_batch", scenario=sc.name, n_cbs=int(len(sc.mpc.behaviours)),
                             T=sc.mpc.config.T, dt=sc.mpc.config.dt)
     write_results(args.out, "sim_batch", meta, points)
