@@ -36,7 +36,7 @@ from ..problem import Obstacle, OwnShip, Situation
 from ..scenario import Scenario
 from . import metrics as metrics_mod
 from .tracker import TrackerBank
-from .vessel import extend_route, kinematic_step, los_course, nominal_speed, pad_routes, wrap
+from .vessel import extend_route, kinematic_step, los_course, nominal_speed, pad_routes
 
 BATCH_MODES = ("auto", "vmap", "loop")
 COST_NAMES = ("total", "do", "colregs", "so", "path")
@@ -168,6 +168,181 @@ class _Progress:
 
 
 # ------------------------------------------------------------------------------------------- simulation
+def _check_count(value, name: str, minimum: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
+        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    return int(value)
+
+
+class _Solver:
+    """Device side of one MPC update: evaluate packed situations (one vmapped call or one call each) and return
+    the chosen behaviour indices, their cost terms and, on request, one situation's full evaluation."""
+
+    def __init__(self, mode: str, config, params, samples):
+        self.mode, self.config, self.params, self.samples = mode, config, params, samples
+
+    def __call__(self, packed: list, keep: int | None):
+        if self.mode == "vmap":
+            ev = _batched_evaluate(self.config)(stack_arrays(packed), self.params, self.samples)
+            best, costs = jax.device_get(_pick(ev))
+            kept = jax.tree.map(lambda a: a[keep], ev) if keep is not None else None
+            return np.asarray(best), np.asarray(costs), kept
+        outs, kept = [], None
+        for n, a in enumerate(packed):
+            ev = evaluate(a, self.params, self.samples, config=self.config)
+            outs.append(_pick(ev))
+            if n == keep:
+                kept = ev
+        host = jax.device_get(outs)
+        return np.array([b for b, _ in host]), np.stack([c for _, c in host]), kept
+
+    def device_calls(self, n_solves: int) -> int:
+        return 1 if self.mode == "vmap" else n_solves
+
+
+class _ClosedLoop:
+    """The state of one :func:`simulate` call, arrays ``[runs, ships, ...]``, and one method per phase of a step
+    (measure, plan, move).  Ship 0 is the own-ship."""
+
+    def __init__(self, scenario: Scenario, runs: int, seed: int, mode: str, key, snapshot_run: int):
+        self.sc, self.R, self.snapshot_run = scenario, runs, snapshot_run
+        mpc, sensor, config = scenario.mpc, scenario.sensor, scenario.mpc.config
+        dt = scenario.dt
+        self.K = _check_multiple(scenario.duration, dt, "duration")
+        self.mpc_every = _check_multiple(mpc.period, dt, "mpc.period")
+        self.meas_every = _check_multiple(sensor.period, dt, "sensor.period")
+        ships = self.ships = scenario.ships
+        n, self.n_tg = len(ships), len(ships) - 1
+        self.routes_ext, self.n_wp = pad_routes([extend_route(s.waypoints) for s in ships])
+        self.colav = np.array([s.colav == "psbmpc" for s in ships])
+        self.lookahead, self.R_a = np.array([s.lookahead for s in ships]), np.array([s.R_a for s in ships])
+        self.T_chi, self.T_U = np.array([s.T_chi for s in ships]), np.array([s.T_U for s in ships])
+
+        dtype = np.dtype(config.dtype)
+        self.solver = _Solver(mode, config, params_as_arrays(mpc.params, dtype),
+                              standard_normal_table(key, config, dtype))
+        self.grid, self.grid_bounds = None, None
+        if config.grounding_mode == "grid" and scenario.polygons:
+            region, reach = grid_region(scenario, [s.waypoints for s in ships])
+            self.grid = build_distance_grid(scenario.polygons, config.grid_spacing, config.grid_margin, dtype=dtype,
+                                            region=region)
+            self.grid_bounds = (np.asarray(region[0]) + reach, np.asarray(region[1]) - reach)
+
+        K, R = self.K, runs
+        self.t = np.arange(K + 1) * dt
+        self.states = np.empty((R, n, K + 1, 4))
+        self.states[:, :, 0] = np.array([[s.position[0], s.position[1], s.course, s.speed] for s in ships])
+        self.seg = np.zeros((R, n), dtype=np.int64)
+        self.u_c, self.chi_off = np.ones((R, n)), np.zeros((R, n))
+        self.rngs = [np.random.default_rng([int(seed), r]) for r in range(R)]
+        R_filter = sensor.filter_R_scale * sensor.position_std ** 2 * np.eye(2)
+        self.tracker = TrackerBank((R, self.n_tg), R_filter, sensor.sigma_a, sensor.U_max) if self.n_tg else None
+        self.track_x = np.full((R, self.n_tg, K + 1, 4), np.nan)
+        self.track_P = np.full((R, self.n_tg, K + 1, 4, 4), np.nan)
+        self.solve_steps = list(range(0, K, self.mpc_every))
+        M = len(self.solve_steps)
+        self.offsets = np.full((R, n, M, 2), np.nan)
+        self.best_costs = np.full((R, n, M, 5), np.nan)
+        self.calls, self.snapshot, self.snap_pending = [], None, bool(self.colav[0])
+        pos_var, vel_var = sensor.colav_target_cov
+        self.true_cov = np.diag([pos_var, pos_var, vel_var, vel_var])
+
+    def situation(self, r: int, i: int, k: int) -> Situation:
+        """What ship ``i`` of run ``r`` plans with at step ``k``: its remaining route from the active segment,
+        the others through the own-ship's tracks (ship 0) or as true states with a small covariance."""
+        s = self.ships[i]
+        z = self.seg[r, i]
+        own = OwnShip(state=self.states[r, i, k], waypoints=self.routes_ext[i, z: self.n_wp[i]],
+                      U_d=nominal_speed(s, self.t[k]), length=s.length, width=s.width)
+        obstacles = []
+        for j, o in enumerate(self.ships):
+            if j == i:
+                continue
+            if i == 0:
+                est, cov = self.track_x[r, j - 1, k], self.track_P[r, j - 1, k]
+            else:
+                xs = self.states[r, j, k]
+                est = np.array([xs[0], xs[1], xs[3] * np.cos(xs[2]), xs[3] * np.sin(xs[2])])
+                cov = self.true_cov
+            obstacles.append(Obstacle(state=est, cov=cov, length=o.length, width=o.width, n_ps=self.sc.mpc.n_ps))
+        return Situation(own, tuple(obstacles), self.sc.polygons)
+
+    def measure(self, k: int) -> None:
+        """Noisy target positions into the tracks (every sensor period); record the tracks of step ``k``."""
+        if self.tracker is None:
+            return
+        if k % self.meas_every == 0:
+            noise = np.stack([g.normal(size=(self.n_tg, 2)) for g in self.rngs])
+            self.tracker.measure(self.states[:, 1:, k, :2] + self.sc.sensor.position_std * noise)
+        self.track_x[:, :, k], self.track_P[:, :, k] = self.tracker.x, self.tracker.P
+
+    def plan(self, k: int) -> None:
+        """One MPC update for every PSB-MPC ship of every run; apply the first maneuvers."""
+        mpc, config = self.sc.mpc, self.sc.mpc.config
+        m = k // self.mpc_every
+        jobs = [(r, i) for r in range(self.R) for i in np.flatnonzero(self.colav)]
+        packed = [pack_situation(self.situation(r, i, k), mpc.behaviours,
+                                 PlannerState((self.u_c[r, i], self.chi_off[r, i])), config, self.grid)
+                  for r, i in jobs]
+        keep = jobs.index((self.snapshot_run, 0)) if self.snap_pending else None
+        t0 = time.perf_counter()
+        best, costs, kept = self.solver(packed, keep)
+        wall = time.perf_counter() - t0
+        self.calls.append({"t_s": float(self.t[k]), "solves": len(jobs),
+                           "device_calls": self.solver.device_calls(len(jobs)), "wall_s": wall})
+        for n, (r, i) in enumerate(jobs):
+            u, c = mpc.behaviours[int(best[n])][0]
+            self.u_c[r, i], self.chi_off[r, i] = u, c
+            self.offsets[r, i, m] = (u, c)
+            self.best_costs[r, i, m] = costs[n]
+        if kept is not None:
+            self._keep_snapshot(kept, k, wall)
+
+    def _keep_snapshot(self, ev, k: int, wall: float) -> None:
+        """Keep the snapshot run's own-ship solve in full: the first one, replaced by the first that manoeuvres."""
+        r = self.snapshot_run
+        manoeuvring = bool(self.u_c[r, 0] != 1.0 or self.chi_off[r, 0] != 0.0)
+        if self.snapshot is None or manoeuvring:
+            res = unpack(ev, self.situation(r, 0, k), self.sc.mpc.behaviours, wall,
+                         per_polygon=self.sc.mpc.config.grounding_mode == "exact")
+            self.snapshot = {"t_s": float(self.t[k]), "run": r, "best_index": res.best_index,
+                             "own_trajectories": res.own_trajectories, "total_cost": res.costs["total"],
+                             "obstacle_trajectories": res.obstacle_trajectories, "manoeuvring": manoeuvring}
+        self.snap_pending = not manoeuvring
+
+    def move(self, k: int) -> None:
+        """True motion from step ``k`` to ``k + 1`` (LOS + offsets, kinematic model); tracks predicted along."""
+        chi_los, self.seg = los_course(self.states[:, :, k, :2], self.seg, self.routes_ext, self.n_wp,
+                                       self.lookahead, self.R_a)
+        U_cmd = self.u_c * np.array([nominal_speed(s, self.t[k]) for s in self.ships])
+        self.states[:, :, k + 1] = kinematic_step(self.states[:, :, k], chi_los + self.chi_off, U_cmd, self.T_chi,
+                                                  self.T_U, self.sc.dt)
+        if self.tracker is not None:
+            self.tracker.step(self.sc.dt)
+
+    def run(self, progress: bool) -> SimulationResult:
+        bar = _Progress(self.K, f"{self.sc.name} ({self.R} runs)", progress)
+        for k in range(self.K + 1):
+            bar.update(k)
+            self.measure(k)
+            if k == self.K:
+                break
+            if k % self.mpc_every == 0 and self.colav.any():
+                self.plan(k)
+            self.move(k)
+        return SimulationResult(
+            scenario=self.sc, t=self.t, states=self.states, track_x=self.track_x, track_P=self.track_P,
+            solve_t=self.t[self.solve_steps], offsets=self.offsets, best_costs=self.best_costs, calls=self.calls,
+            snapshot=self.snapshot, metrics=[])
+
+    def grid_exceeded(self) -> bool | None:
+        """Whether any ship came closer to the grid's edge than one horizon's reach (None without a grid)."""
+        if self.grid_bounds is None:
+            return None
+        xy = self.states[..., :2]
+        return bool(np.any(xy < self.grid_bounds[0]) or np.any(xy > self.grid_bounds[1]))
+
+
 def simulate(scenario: Scenario, *, runs: int | None = None, seed: int | None = None, batch: str = "auto",
              progress: bool = False, snapshot_run: int = 0, key=None) -> SimulationResult:
     """Run ``runs`` Monte Carlo closed-loop simulations of ``scenario`` (default: the scenario's).
@@ -182,154 +357,18 @@ def simulate(scenario: Scenario, *, runs: int | None = None, seed: int | None = 
     """
     if not isinstance(scenario, Scenario):
         raise ValueError(f"scenario must be a psbmpc_jax.scenario.Scenario, got {type(scenario).__name__}")
-    runs = scenario.runs if runs is None else runs
-    seed = scenario.seed if seed is None else seed
-    if isinstance(runs, bool) or not isinstance(runs, (int, np.integer)) or runs < 1:
-        raise ValueError(f"runs must be an integer >= 1, got {runs!r}")
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
+    runs = _check_count(scenario.runs if runs is None else runs, "runs", 1)
+    seed = _check_count(scenario.seed if seed is None else seed, "seed", 0)
     if not 0 <= snapshot_run < runs:
         raise ValueError(f"snapshot_run must be in [0, {runs}), got {snapshot_run}")
     mode = resolve_batch_mode(batch)
-    mpc, sensor = scenario.mpc, scenario.sensor
-    config = mpc.config
-    check_dtype(config)
-    if config.estimator != "quadrature" and key is None:
-        raise ValueError(f"estimator {config.estimator!r} draws samples: pass key=jax.random.key(...)")
-    dt = scenario.dt
-    n_steps = _check_multiple(scenario.duration, dt, "duration")
-    mpc_every = _check_multiple(mpc.period, dt, "mpc.period")
-    meas_every = _check_multiple(sensor.period, dt, "sensor.period")
-
-    ships = scenario.ships
-    n_ships, n_tg = len(ships), len(ships) - 1
-    routes = [s.waypoints for s in ships]
-    routes_ext, n_wp = pad_routes([extend_route(r) for r in routes])
-    colav = np.array([s.colav == "psbmpc" for s in ships])
-    lookahead = np.array([s.lookahead for s in ships])
-    R_a = np.array([s.R_a for s in ships])
-    T_chi = np.array([s.T_chi for s in ships])
-    T_U = np.array([s.T_U for s in ships])
-
-    dtype = np.dtype(config.dtype)
-    p_arrays = params_as_arrays(mpc.params, dtype)
-    samples = standard_normal_table(key, config, dtype)
-    grid = None
-    if config.grounding_mode == "grid" and scenario.polygons:
-        region, grid_reach = grid_region(scenario, routes)
-        grid = build_distance_grid(scenario.polygons, config.grid_spacing, config.grid_margin, dtype=dtype,
-                                   region=region)
-        grid_lo, grid_hi = np.asarray(region[0]), np.asarray(region[1])
-
-    # ---- state
-    R = runs
-    K = n_steps
-    t = np.arange(K + 1) * dt
-    states = np.empty((R, n_ships, K + 1, 4))
-    states[:, :, 0] = np.array([[s.position[0], s.position[1], s.course, s.speed] for s in ships])
-    seg = np.zeros((R, n_ships), dtype=np.int64)
-    u_c = np.ones((R, n_ships))
-    chi_off = np.zeros((R, n_ships))
-    rngs = [np.random.default_rng([int(seed), r]) for r in range(R)]
-    R_filter = sensor.filter_R_scale * sensor.position_std ** 2 * np.eye(2)
-    tracker = TrackerBank((R, n_tg), R_filter, sensor.sigma_a, sensor.U_max) if n_tg else None
-    track_x = np.full((R, n_tg, K + 1, 4), np.nan)
-    track_P = np.full((R, n_tg, K + 1, 4, 4), np.nan)
-    solve_steps = list(range(0, K, mpc_every))
-    M = len(solve_steps)
-    offsets = np.full((R, n_ships, M, 2), np.nan)
-    best_costs = np.full((R, n_ships, M, 5), np.nan)
-    calls, snapshot, snap_pending = [], None, True
-    colav_idx = np.flatnonzero(colav)
-    pos_var, vel_var = sensor.colav_target_cov
-    true_cov = np.diag([pos_var, pos_var, vel_var, vel_var])
-    bar = _Progress(K, f"{scenario.name} ({R} runs)", progress)
-
-    def situation(r: int, i: int, k: int) -> Situation:
-        s = ships[i]
-        x = states[r, i, k]
-        z = seg[r, i]
-        own = OwnShip(state=x, waypoints=routes_ext[i, z: n_wp[i]], U_d=nominal_speed(s, t[k]),
-                      length=s.length, width=s.width)
-        obstacles = []
-        for j in range(n_ships):
-            if j == i:
-                continue
-            o = ships[j]
-            if i == 0:           # the own-ship sees the targets through its tracker
-                est, cov = track_x[r, j - 1, k], track_P[r, j - 1, k]
-            else:                # a PSB-MPC target sees the true state with a small fixed covariance
-                xs = states[r, j, k]
-                est = np.array([xs[0], xs[1], xs[3] * np.cos(xs[2]), xs[3] * np.sin(xs[2])])
-                cov = true_cov
-            obstacles.append(Obstacle(state=est, cov=cov, length=o.length, width=o.width, n_ps=mpc.n_ps))
-        return Situation(own, tuple(obstacles), scenario.polygons)
-
-    for k in range(K + 1):
-        bar.update(k)
-        if tracker is not None:
-            if k % meas_every == 0:
-                z = states[:, 1:, k, :2] + sensor.position_std * np.stack([g.normal(size=(n_tg, 2)) for g in rngs])
-                tracker.measure(z)
-            track_x[:, :, k], track_P[:, :, k] = tracker.x, tracker.P
-        if k == K:
-            break
-        if k % mpc_every == 0 and len(colav_idx):
-            m = k // mpc_every
-            jobs = [(r, i) for r in range(R) for i in colav_idx]
-            packed = [pack_situation(situation(r, i, k), mpc.behaviours, PlannerState((u_c[r, i], chi_off[r, i])),
-                                     config, grid) for r, i in jobs]
-            t0 = time.perf_counter()
-            snap_job = jobs.index((snapshot_run, 0)) if (snap_pending and colav[0]) else None
-            if mode == "vmap":
-                ev = _batched_evaluate(config)(stack_arrays(packed), p_arrays, samples)
-                best, costs = jax.device_get(_pick(ev))
-                snap_ev = jax.tree.map(lambda a: a[snap_job], ev) if snap_job is not None else None
-            else:
-                outs, snap_ev = [], None
-                for n, a in enumerate(packed):
-                    ev = evaluate(a, p_arrays, samples, config=config)
-                    outs.append(_pick(ev))
-                    if n == snap_job:
-                        snap_ev = ev
-                host = jax.device_get(outs)
-                best, costs = np.array([b for b, _ in host]), np.stack([c for _, c in host])
-            wall = time.perf_counter() - t0
-            calls.append({"t_s": float(t[k]), "solves": len(jobs), "device_calls": 1 if mode == "vmap" else len(jobs),
-                          "wall_s": wall})
-            for n, (r, i) in enumerate(jobs):
-                u, c = mpc.behaviours[int(best[n])][0]
-                u_c[r, i], chi_off[r, i] = u, c
-                offsets[r, i, m] = (u, c)
-                best_costs[r, i, m] = costs[n]
-            if snap_ev is not None:
-                manoeuvring = bool(u_c[snapshot_run, 0] != 1.0 or chi_off[snapshot_run, 0] != 0.0)
-                if snapshot is None or manoeuvring:
-                    res = unpack(snap_ev, situation(snapshot_run, 0, k), mpc.behaviours, wall,
-                                 per_polygon=config.grounding_mode == "exact")
-                    snapshot = {"t_s": float(t[k]), "run": snapshot_run, "best_index": res.best_index,
-                                "own_trajectories": res.own_trajectories, "total_cost": res.costs["total"],
-                                "obstacle_trajectories": res.obstacle_trajectories, "manoeuvring": manoeuvring}
-                snap_pending = not manoeuvring
-        # ---- true motion
-        pos = states[:, :, k, :2]
-        chi_los, seg = los_course(pos, seg, routes_ext, n_wp, lookahead, R_a)
-        U_cmd = u_c * np.array([nominal_speed(s, t[k]) for s in ships])
-        states[:, :, k + 1] = kinematic_step(states[:, :, k], chi_los + chi_off, U_cmd, T_chi, T_U, dt)
-        if tracker is not None:
-            tracker.step(dt)
-
-    grid_exceeded = None
-    if grid is not None:   # every prediction must have stayed on the grid (see grid_region)
-        xy = states[..., :2]
-        grid_exceeded = bool(np.any(xy < grid_lo + grid_reach) or np.any(xy > grid_hi - grid_reach))
-    result = SimulationResult(
-        scenario=scenario, t=t, states=states, track_x=track_x, track_P=track_P,
-        solve_t=t[solve_steps] if M else np.zeros(0), offsets=offsets, best_costs=best_costs, calls=calls,
-        snapshot=snapshot, metrics=[],
-    )
-    result.metrics = [run_metrics(result, r) for r in range(R)]
-    result.summary = summarize(result, mode=mode, grid_exceeded=grid_exceeded)
+    check_dtype(scenario.mpc.config)
+    if scenario.mpc.config.estimator != "quadrature" and key is None:
+        raise ValueError(f"estimator {scenario.mpc.config.estimator!r} draws samples: pass key=jax.random.key(...)")
+    loop = _ClosedLoop(scenario, runs, seed, mode, key, snapshot_run)
+    result = loop.run(progress)
+    result.metrics = [run_metrics(result, r) for r in range(runs)]
+    result.summary = summarize(result, mode=mode, grid_exceeded=loop.grid_exceeded())
     return result
 
 
