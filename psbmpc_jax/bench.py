@@ -31,6 +31,10 @@ reference point skipped; with the default budget of 120 s the later reference po
   shows above the fixed grounding cost of the 13 polygons)
 * ``fig9``: the largest polygon raw and after RDP at 2 m (n_vertices 21 961 and 1 734), 1014 behaviours
 * ``fig10``: n_so in 1..13, 1014 behaviours
+* ``fig6s``, ``fig7s``: the n_ps sweeps of fig6/fig7 (fig7s up to 31) at a fixed scenario fan: r_ct =
+  40 m / (n_ps - 1), so every scenario stays within the +-20 m band of the paper's n_ps = 5 fan and more
+  scenarios sample the same band more finely; with the fixed r_ct of fig6/fig7 the added outer scenarios
+  (up to +-500 m) never come near the own-ship, the sigma-shortcut drops them, and the work saturates
 * ``paper``: all of the above; ``smoke``: T = 10 s, n_cbs in 9, 39 (a few seconds, for tests)
 
 Per point and platform: compile time (``lower().compile()``), ``--warmup`` untimed calls, ``--repeats`` timed
@@ -70,18 +74,20 @@ ESTIMATORS = ("quadrature", "mc", "ce")
 FIELDS = ("schema", "sweep", "swept", "impl", "platform", "device_kind", "n_devices", "host", "estimator", "dtype",
           "grounding_mode", "n_M", "n_cbs", "n_do", "n_ps", "n_so", "n_vertices", "n_ct", "T", "dt", "compile_s",
           "times_ms", "median_ms", "min_ms", "max_ms", "q1_ms", "q3_ms", "peak_memory_bytes", "memory_source",
-          "best", "n_pc_blocks", "skipped", "skip_reason", "versions", "commit", "timestamp")
+          "r_ct", "best", "n_pc_blocks", "skipped", "skip_reason", "versions", "commit", "timestamp")
 
 #: (swept, values, fixed settings) per preset figure.
 PRESETS = {
     "fig5": ("n_cbs", (9, 39, 156, 390, 1014, 2028), {"n_ps": 1}),
     "fig6": ("n_ps", (1, 11, 21, 41, 61, 81, 101), {"n_cbs": 39}),
     "fig7": ("n_ps", (1, 5, 11, 21, 31, 41), {"n_cbs": 1014}),
+    "fig6s": ("n_ps", (1, 11, 21, 41, 61, 81, 101), {"n_cbs": 39, "spread": 40.0}),
+    "fig7s": ("n_ps", (1, 5, 11, 21, 31), {"n_cbs": 1014, "spread": 40.0}),
     "fig9": ("n_vertices", (0.0, 2.0), {"n_cbs": 1014}),
     "fig10": ("n_so", tuple(range(1, 14)), {"n_cbs": 1014}),
     "smoke": ("n_cbs", (9, 39), {"n_ps": 1, "T": 10.0}),
 }
-PAPER_FIGS = ("fig5", "fig6", "fig7", "fig9", "fig10")
+PAPER_FIGS = ("fig5", "fig6", "fig7", "fig9", "fig10", "fig6s", "fig7s")
 
 
 # ----------------------------------------------------------------------------------------------- metadata
@@ -147,6 +153,14 @@ class Point:
     still: bool = False   # own-ship standing still, no obstacles
     largest_only: bool = False
     T: float = 150.0
+    spread: float = 0.0   # > 0: lateral span of the scenario fan [m], r_ct = spread / (n_ps - 1)
+
+    @property
+    def r_ct(self) -> float:
+        """Scenario spacing of this point: the default 10 m (Table 1), or the fixed fan width over n_ps - 1."""
+        from .params import Params
+
+        return self.spread / (self.n_ps - 1) if self.spread > 0 and self.n_ps > 1 else Params().r_ct
 
     def label(self) -> str:
         v = self.value
@@ -264,8 +278,9 @@ def parse_values(text: str, swept: str) -> list:
 # ------------------------------------------------------------------------------------------ arguments
 def add_bench_arguments(p: argparse.ArgumentParser) -> None:
     g = p.add_mutually_exclusive_group()
-    g.add_argument("--preset", choices=tuple(PRESETS)[:5] + ("paper", "smoke"),
-                   help="paper figure sweep (fig5/fig6/fig7/fig9/fig10), all of them (paper), or smoke")
+    g.add_argument("--preset", choices=tuple(k for k in PRESETS if k != "smoke") + ("paper", "smoke"),
+                   help="paper figure sweep (fig5/fig6/fig7/fig9/fig10), fig6s/fig7s (n_ps sweeps at a fixed "
+                        "scenario fan width), all of these (paper), or smoke")
     g.add_argument("--sweep", choices=SWEEPS, help="explicit sweep of one size (needs --values)")
     p.add_argument("--values", help="comma-separated values for --sweep, e.g. 1,3,5 (n_vertices: RDP eps [m], 0=raw)")
     p.add_argument("--estimator", choices=ESTIMATORS, default="quadrature")
@@ -378,6 +393,7 @@ class Runner:
                    estimator=self.args.estimator, dtype=self.args.dtype, grounding_mode=self.args.grounding,
                    n_M=int(behaviours.shape[1]), n_cbs=n_cbs, n_do=n_do, n_ps=int(n_ps), n_so=n_so,
                    n_vertices=n_vertices(situation), n_ct=n_cbs * (n_so + n_do * int(n_ps)), T=float(p.T),
+                   r_ct=float(p.r_ct),
                    dt=float(self.args.dt), skipped=False, versions=self.meta["versions"],
                    commit=self.meta["commit"], **stats_ms([]))
         return rec
@@ -392,12 +408,13 @@ class Runner:
         import jax
 
         from .evaluate import evaluate
+        from .params import Params
         from .planner import Planner
 
         dev = devices[0]
         rss0 = peak_rss_bytes()
         with jax.default_device(dev):
-            planner = Planner(config, behaviours=behaviours)
+            planner = Planner(config, params=Params(r_ct=p.r_ct), behaviours=behaviours)
             arrays, params, samples = planner.prepare(situation, key=jax.random.key(self.args.seed))
         if multi:
             from .sharding import evaluate_sharded
@@ -457,7 +474,7 @@ class Runner:
         times, res = [], None
         for _ in range(self.args.reference_repeats):
             t0 = time.perf_counter()
-            res = evaluate_reference(situation, behaviours, Params(), cfg64, samples=ref_samples)
+            res = evaluate_reference(situation, behaviours, Params(r_ct=p.r_ct), cfg64, samples=ref_samples)
             times.append(time.perf_counter() - t0)
         used = sum(times)
         self.ref_used += used

@@ -129,3 +129,18 @@ def test_behaviour_sets_sizes():
     assert behaviours_for(39).shape[1] == 1 and behaviours_for(156).shape[1] == 2
     with pytest.raises(ValueError, match="n_cbs=100"):
         behaviours_for(100)
+
+
+def test_fixed_fan_presets_scale_r_ct():
+    """fig6s/fig7s keep the scenario fan 40 m wide: r_ct = 40 / (n_ps - 1); fig6/fig7 keep Table 1's 10 m."""
+    from psbmpc_jax.bench import add_bench_arguments, build_plan
+    import argparse
+
+    ap = argparse.ArgumentParser()
+    add_bench_arguments(ap)
+    pts = build_plan(ap.parse_args(["--preset", "fig6s"]))
+    assert [p.n_ps for p in pts] == [1, 11, 21, 41, 61, 81, 101]
+    assert pts[0].r_ct == 10.0 and pts[1].r_ct == pytest.approx(4.0) and pts[-1].r_ct == pytest.approx(0.4)
+    assert all((p.n_ps - 1) * p.r_ct == pytest.approx(40.0) for p in pts[1:])
+    assert all(p.r_ct == 10.0 for p in build_plan(ap.parse_args(["--preset", "fig7"])))
+    assert {p.sweep for p in build_plan(ap.parse_args(["--preset", "paper"]))} >= {"fig6s", "fig7s"}
