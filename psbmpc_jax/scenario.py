@@ -565,7 +565,8 @@ def _count_vertices(polys) -> int:
     return int(sum(len(p.exterior.coords) - 1 + sum(len(r.coords) - 1 for r in p.interiors) for p in polys))
 
 
-def _route_geometry(ship: ShipSpec):
+def route_geometry(ship: ShipSpec):
+    """The ship's start and route as one shapely geometry (what ``chart.clip_m`` buffers)."""
     pts = np.vstack([ship.position[None, :], ship.waypoints])
     keep = np.r_[True, np.any(pts[1:] != pts[:-1], axis=1)]
     pts = pts[keep]
@@ -574,7 +575,7 @@ def _route_geometry(ship: ShipSpec):
 
 def _clip(polys: list[Polygon], ships, clip_m: float) -> tuple[list[Polygon], dict]:
     """Keep the land within ``clip_m`` of every ship's start and route (shapely buffer, CLIP_QUAD_SEGS)."""
-    region = shapely.union_all([_route_geometry(s).buffer(clip_m, quad_segs=CLIP_QUAD_SEGS) for s in ships])
+    region = shapely.union_all([route_geometry(s).buffer(clip_m, quad_segs=CLIP_QUAD_SEGS) for s in ships])
     shapely.prepare(region)
     out, removed, clipped, dropped = [], 0, 0, 0
     for p in polys:

@@ -125,7 +125,7 @@ def test_grid_chart_channel_no_grounding():
         "sensor": {"position_std_m": 1, "period_s": 2.5, "filter_R_scale": 25, "sigma_a_mps2": 0.5,
                    "U_max_mps": 4},
         "chart": {"polygons_m": [[[-200, 40], [800, 40], [800, 200], [-200, 200]],
-                                 [[-200, -40], [-200, -200], [800, -200], [800, -40]]]},
+                                 [[-200, -40], [-200, -200], [800, -200], [800, -40]]], "clip_m": 1000},
         "own_ship": {"name": "OS", "position_m": [0, 0], "course_deg": 0, "speed_mps": 2,
                      "waypoints_m": [[0, 0], [700, 0]]},
         "targets": [{"name": "TS1", "position_m": [400, 0], "course_deg": 180, "speed_mps": 2,
@@ -133,11 +133,18 @@ def test_grid_chart_channel_no_grounding():
     }
     res = simulate(scenario_from_dict(data))
     s = res.summary
-    assert s["grid_region_exceeded"] is False
+    assert s["grid_region_exceeded"] is False and s["chart_clip_exceeded"] is False
     assert s["collisions"] == 0 and s["groundings"] == 0
     m = res.metrics[0]
     assert 0 < m["min_distance_land_m"] < 40
     assert m["targets"][0]["min_distance_m"] > 5.0
+    # land clipped closer to the routes than one horizon's reach (2 m/s x 150 s): flagged, and said in summary.md
+    data["chart"]["clip_m"] = 250
+    data["simulation"]["duration_s"] = 10
+    short_run = simulate(scenario_from_dict(data))
+    assert short_run.summary["chart_clip_exceeded"] is True
+    from psbmpc_jax.sim.output import summary_markdown
+    assert "raise `clip_m`" in summary_markdown(short_run)
 
 
 def test_return_to_route_is_not_a_port_turn():

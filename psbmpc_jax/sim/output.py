@@ -77,6 +77,9 @@ def summary_markdown(result) -> str:
     if s.get("grid_region_exceeded"):
         lines += ["**Warning:** a ship left the region covered by the distance grid; grounding costs there "
                   "were computed as open water.", ""]
+    if s.get("chart_clip_exceeded"):
+        lines += ["**Warning:** a ship came so far from the routes that its predictions reached beyond the land "
+                  "kept by `chart.clip_m`; raise `clip_m`.", ""]
     lines += ["| target | encounter | min distance [m] (min / median / max over runs) | collisions | COLREGS maneuver matched |",
               "|---|---|---|---|---|"]
     for i, tg in enumerate(sc.targets):

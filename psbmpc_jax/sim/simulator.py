@@ -222,8 +222,9 @@ class _ClosedLoop:
         self.solver = _Solver(mode, config, params_as_arrays(mpc.params, dtype),
                               standard_normal_table(key, config, dtype))
         self.grid, self.grid_bounds = None, None
+        region, self.reach = grid_region(scenario, [s.waypoints for s in ships])
         if config.grounding_mode == "grid" and scenario.polygons:
-            region, reach = grid_region(scenario, [s.waypoints for s in ships])
+            reach = self.reach
             self.grid = build_distance_grid(scenario.polygons, config.grid_spacing, config.grid_margin, dtype=dtype,
                                             region=region)
             self.grid_bounds = (np.asarray(region[0]) + reach, np.asarray(region[1]) - reach)
@@ -335,6 +336,21 @@ class _ClosedLoop:
             solve_t=self.t[self.solve_steps], offsets=self.offsets, best_costs=self.best_costs, calls=self.calls,
             snapshot=self.snapshot, metrics=[])
 
+    def clip_exceeded(self) -> bool | None:
+        """Whether a prediction can have reached beyond the land kept by ``chart.clip_m``: true when a ship came
+        farther than ``clip_m`` minus one horizon's reach from every route (None without clipping)."""
+        clip = self.sc.chart_info.get("clip_m")
+        if not clip or not self.sc.polygons:
+            return None
+        import shapely
+
+        from ..scenario import route_geometry
+
+        routes = shapely.union_all([route_geometry(s) for s in self.ships])
+        xy = self.states[..., :2].reshape(-1, 2)
+        far = float(np.max(shapely.distance(routes, shapely.points(xy))))
+        return bool(far + self.reach > clip)
+
     def grid_exceeded(self) -> bool | None:
         """Whether any ship came closer to the grid's edge than one horizon's reach (None without a grid)."""
         if self.grid_bounds is None:
@@ -368,7 +384,8 @@ def simulate(scenario: Scenario, *, runs: int | None = None, seed: int | None = 
     loop = _ClosedLoop(scenario, runs, seed, mode, key, snapshot_run)
     result = loop.run(progress)
     result.metrics = [run_metrics(result, r) for r in range(runs)]
-    result.summary = summarize(result, mode=mode, grid_exceeded=loop.grid_exceeded())
+    result.summary = summarize(result, mode=mode, grid_exceeded=loop.grid_exceeded(),
+                               clip_exceeded=loop.clip_exceeded())
     return result
 
 
@@ -406,7 +423,8 @@ def run_metrics(result: SimulationResult, r: int) -> dict:
     return out
 
 
-def summarize(result: SimulationResult, *, mode: str, grid_exceeded: bool | None) -> dict:
+def summarize(result: SimulationResult, *, mode: str, grid_exceeded: bool | None,
+              clip_exceeded: bool | None = None) -> dict:
     """Aggregate over runs, plus how the simulation ran (batch mode, device calls, timing)."""
     sc = result.scenario
     summary = metrics_mod.aggregate(result.metrics)
@@ -429,5 +447,6 @@ def summarize(result: SimulationResult, *, mode: str, grid_exceeded: bool | None
         "call_wall_s_median": float(np.median(walls)) if walls.size else None,
         "solve_wall_s_amortised_median": float(np.median(per_solve)) if per_solve.size else None,
         "grid_region_exceeded": grid_exceeded,
+        "chart_clip_exceeded": clip_exceeded,
     })
     return summary
