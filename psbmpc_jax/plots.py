@@ -10,13 +10,27 @@ import pathlib
 
 import numpy as np
 
-__all__ = ["plot_chart", "write_rdp_figure"]
+__all__ = ["land_patch", "plot_chart", "write_rdp_figure"]
 
 
 def _rings(poly):
     yield np.asarray(poly.exterior.coords)
     for r in poly.interiors:
         yield np.asarray(r.coords)
+
+
+def land_patch(rings, *, facecolor="#d9c9a3", edgecolor="#6b5a3a", lw: float = 0.6, zorder: int = 1):
+    """One filled patch of a polygon with holes, drawn north up: ``rings`` are closed (first point repeated at
+    the end) ``[n, 2]`` (north, east) arrays, exterior first; holes are cut out (even-odd)."""
+    from matplotlib.patches import PathPatch
+    from matplotlib.path import Path
+
+    verts, codes = [], []
+    for ring in rings:
+        xy = np.asarray(ring)[:, ::-1]  # (east, north)
+        verts.append(xy)
+        codes += [Path.MOVETO] + [Path.LINETO] * (len(xy) - 2) + [Path.CLOSEPOLY]
+    return PathPatch(Path(np.vstack(verts), codes), facecolor=facecolor, edgecolor=edgecolor, lw=lw, zorder=zorder)
 
 
 def plot_chart(chart, ax=None, simplified=None, *, own_ship=None, d_so=None, land_color="#d9c9a3",
@@ -37,19 +51,11 @@ def plot_chart(chart, ax=None, simplified=None, *, own_ship=None, d_so=None, lan
     Returns the axes.
     """
     import matplotlib.pyplot as plt
-    from matplotlib.patches import PathPatch
-    from matplotlib.path import Path
 
     if ax is None:
         _, ax = plt.subplots(figsize=(7, 7))
     for poly, pid in zip(chart.polygons, chart.ids):
-        verts, codes = [], []
-        for ring in _rings(poly):
-            xy = ring[:, ::-1]  # (east, north)
-            verts.append(xy)
-            codes += [Path.MOVETO] + [Path.LINETO] * (len(xy) - 2) + [Path.CLOSEPOLY]
-        ax.add_patch(PathPatch(Path(np.vstack(verts), codes), facecolor=land_color, edgecolor=edge_color,
-                               lw=0.6, zorder=1))
+        ax.add_patch(land_patch(_rings(poly), facecolor=land_color, edgecolor=edge_color))
         if show_vertices:
             for ring in _rings(poly):
                 ax.plot(ring[:-1, 1], ring[:-1, 0], ".", color="black", ms=3.0, zorder=2)

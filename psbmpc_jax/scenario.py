@@ -24,7 +24,7 @@ import numpy as np
 import shapely
 import shapely.validation
 import yaml
-from shapely.geometry import LineString, MultiPolygon, Point, Polygon
+from shapely.geometry import LineString, Point, Polygon
 
 from .params import Params, PlannerConfig
 
@@ -545,21 +545,6 @@ def _chart_source(d, base_dir):
     return chart, None, info, rdp_eps, clip
 
 
-def _areal_parts(geom) -> tuple[list[Polygon], int]:
-    """Polygon parts of an intersection, and how many non-areal (line / point) or empty parts were dropped."""
-    parts, dropped = [], 0
-    for g in shapely.get_parts(geom):
-        if isinstance(g, Polygon) and not g.is_empty and g.area > 0.0:
-            parts.append(g)
-        elif isinstance(g, (MultiPolygon, shapely.GeometryCollection)) and not g.is_empty:
-            p, k = _areal_parts(g)
-            parts += p
-            dropped += k
-        else:
-            dropped += 1
-    return parts, dropped
-
-
 def _count_vertices(polys) -> int:
     """Vertices of all rings (holes included, closing vertices not counted)."""
     return int(sum(len(p.exterior.coords) - 1 + sum(len(r.coords) - 1 for r in p.interiors) for p in polys))
@@ -575,6 +560,8 @@ def route_geometry(ship: ShipSpec):
 
 def _clip(polys: list[Polygon], ships, clip_m: float) -> tuple[list[Polygon], dict]:
     """Keep the land within ``clip_m`` of every ship's start and route (shapely buffer, CLIP_QUAD_SEGS)."""
+    from .charts import _areal_parts
+
     region = shapely.union_all([route_geometry(s).buffer(clip_m, quad_segs=CLIP_QUAD_SEGS) for s in ships])
     shapely.prepare(region)
     out, removed, clipped, dropped = [], 0, 0, 0

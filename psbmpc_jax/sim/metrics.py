@@ -25,6 +25,9 @@ from collections.abc import Sequence
 import numpy as np
 import shapely
 
+from ..reference import wrap_angle
+from .checks import positive_scalar
+
 __all__ = [
     "HEAD_ON_SECTOR_DEG",
     "OVERTAKING_ABAFT_SECTOR_DEG",
@@ -75,11 +78,6 @@ ENCOUNTER_TYPES = ("head-on", "crossing-give-way", "crossing-stand-on", "overtak
 
 
 # -------------------------------------------------------------------------------------------------- helpers
-def _wrap(a):
-    """Wrap angles [rad] to [-pi, pi)."""
-    return np.asarray(a) - 2.0 * np.pi * np.floor((np.asarray(a) + np.pi) / (2.0 * np.pi))
-
-
 def _wrap_deg(a):
     return np.asarray(a) - 360.0 * np.floor((np.asarray(a) + 180.0) / 360.0)
 
@@ -90,16 +88,6 @@ def _json_float(v):
         return None
     v = float(v)
     return v if math.isfinite(v) else None
-
-
-def _positive(value, name: str, *, allow_zero: bool = False) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be a finite real number, got {value!r}") from exc
-    if not math.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
-        raise ValueError(f"{name} must be finite and {'>= 0' if allow_zero else '> 0'}, got {value!r}")
-    return v
 
 
 def _array(a, name: str, shape_desc: str, ndim: int, last: int | None) -> np.ndarray:
@@ -153,8 +141,8 @@ def relative_bearings(own_state, target_state):
     target_state = np.asarray(target_state, dtype=float)
     dn = target_state[..., 0] - own_state[..., 0]
     de = target_state[..., 1] - own_state[..., 1]
-    beta = _wrap(np.arctan2(de, dn) - own_state[..., 2])
-    alpha = _wrap(np.arctan2(-de, -dn) - target_state[..., 2])
+    beta = wrap_angle(np.arctan2(de, dn) - own_state[..., 2])
+    alpha = wrap_angle(np.arctan2(-de, -dn) - target_state[..., 2])
     return beta, alpha
 
 
@@ -212,7 +200,7 @@ def encounter_type(t, own, target, range_m):
     own = _check_traj(own, "own", t.size)
     target = _check_traj(target, "target", t.size)
     if range_m is not None:
-        range_m = _positive(range_m, "range_m")
+        range_m = positive_scalar(range_m, "range_m")
     k = _classification_index(_ranges(own, target), range_m)
     if k is None:
         return "none", float("nan")
@@ -296,7 +284,7 @@ def maneuver_compliance(t, own, target, encounter, route, *, d_collision=None):
     if enc not in allowed:
         raise ValueError(f"encounter type must be one of {allowed}, got {enc!r}")
     if d_collision is not None:
-        d_collision = _positive(d_collision, "d_collision")
+        d_collision = positive_scalar(d_collision, "d_collision")
     empty = {"compliant": None, "encounter": enc, "t_classified": None, "t_cpa": None, "passing_side": None,
              "passed_astern": None, "max_starboard_deviation_deg": None, "max_port_deviation_deg": None,
              "min_speed_ratio": None, "min_distance_m": None, "first_alteration": None}
@@ -310,7 +298,7 @@ def maneuver_compliance(t, own, target, encounter, route, *, d_collision=None):
     d = _ranges(own, target)
     k_cpa = k0 + int(np.argmin(d[k0:]))
     win = slice(k0, k_cpa + 1)
-    dev = np.degrees(_wrap(own[win, 2] - _leg_courses(own[win, :2], route)))
+    dev = np.degrees(wrap_angle(own[win, 2] - _leg_courses(own[win, :2], route)))
     max_stbd = float(max(0.0, dev.max()))
     max_port = float(max(0.0, -dev.min()))
     u0 = own[k0, 3]
@@ -434,7 +422,7 @@ def course_rate(t, chi):
     chi = _array(chi, "chi", "[K]", 1, None)
     if chi.shape != t.shape:
         raise ValueError(f"chi must have the shape of t {t.shape}, got {chi.shape}")
-    return _wrap(np.diff(chi)) / np.diff(t)
+    return wrap_angle(np.diff(chi)) / np.diff(t)
 
 
 # ------------------------------------------------------------------------------------------------ per run
@@ -478,10 +466,10 @@ def run_metrics(t, own, targets, route, polygons, *, d_collision, ground_clearan
     if not np.all(np.isfinite(tg)):
         raise ValueError("targets must be finite (no NaN/inf)")
     route = _check_route(route)
-    d_collision = _positive(d_collision, "d_collision")
-    ground_clearance = _positive(ground_clearance, "ground_clearance", allow_zero=True)
+    d_collision = positive_scalar(d_collision, "d_collision")
+    ground_clearance = positive_scalar(ground_clearance, "ground_clearance", allow_zero=True)
     if classify_range is not None:
-        classify_range = _positive(classify_range, "classify_range")
+        classify_range = positive_scalar(classify_range, "classify_range")
     n = tg.shape[0]
     if target_names is None:
         names = [f"target_{i}" for i in range(n)]

@@ -82,23 +82,17 @@ def summary_markdown(result) -> str:
                   "kept by `chart.clip_m`; raise `clip_m`.", ""]
     lines += ["| target | encounter | min distance [m] (min / median / max over runs) | collisions | COLREGS maneuver matched |",
               "|---|---|---|---|---|"]
-    for i, tg in enumerate(sc.targets):
-        enc = sorted({m["targets"][i]["encounter"] for m in result.metrics})
-        d = [m["targets"][i]["min_distance_m"] for m in result.metrics]
-        col = sum(1 for m in result.metrics if m["targets"][i]["collision"])
-        comp = [m["targets"][i]["compliance"]["compliant"] for m in result.metrics]
-        judged = [c for c in comp if c is not None]
-        comp_txt = f"{sum(judged)}/{len(judged)}" if judged else "n/a"
-        lines.append(f"| {tg.name} | {', '.join(enc)} | {min(d):.1f} / {float(np.median(d)):.1f} / {max(d):.1f} "
-                     f"| {col} | {comp_txt} |")
+    for tg in s["targets"]:                       # the aggregate over runs (sim.metrics.aggregate)
+        d = tg["min_distance_m"]
+        judged = tg["n_compliance_evaluated"]
+        comp_txt = f"{tg['n_compliant']}/{judged}" if judged else "n/a"
+        lines.append(f"| {tg['name']} | {', '.join(sorted(tg['encounters']))} | {d['min']:.1f} / {d['median']:.1f} / "
+                     f"{d['max']:.1f} | {tg['collisions']} | {comp_txt} |")
     if sc.polygons:
-        d = [m["min_distance_land_m"] for m in result.metrics]
-        lines += ["", f"Minimum own-ship distance to land over runs: {min(d):.1f} m (median "
-                      f"{float(np.median(d)):.1f} m)."]
-    pd = [m["path_deviation_mean_m"] for m in result.metrics]
-    cr = [m["mean_abs_course_rate_deg_s"] for m in result.metrics]
-    lines += ["", f"Mean path deviation {float(np.mean(pd)):.1f} m; mean absolute course rate "
-                  f"{float(np.mean(cr)):.3f} deg/s.", ""]
+        d = s["min_distance_land_m"]
+        lines += ["", f"Minimum own-ship distance to land over runs: {d['min']:.1f} m (median {d['median']:.1f} m)."]
+    lines += ["", f"Mean path deviation {s['path_deviation_mean_m']:.1f} m; mean absolute course rate "
+                  f"{s['mean_abs_course_rate_deg_s']['mean']:.3f} deg/s.", ""]
     return "\n".join(lines)
 
 

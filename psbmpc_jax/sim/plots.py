@@ -9,6 +9,7 @@ import pathlib
 
 import numpy as np
 
+from ..plots import land_patch
 from ..problem import polygon_rings
 
 SHIP_COLORS = ("tab:red", "tab:green", "tab:blue", "tab:purple", "black", "tab:orange", "tab:brown", "tab:cyan")
@@ -25,18 +26,8 @@ def _ship_outline(n, e, chi, length, width, scale):
 
 
 def _draw_land(ax, polygons):
-    from matplotlib.patches import PathPatch
-    from matplotlib.path import Path
-
-    for poly in polygons:
-        verts, codes = [], []
-        for ring in polygon_rings(poly):
-            ring = np.asarray(ring)
-            xy = np.vstack([ring[:, ::-1], ring[:1, ::-1]])
-            verts.append(xy)
-            codes += [Path.MOVETO] + [Path.LINETO] * (len(xy) - 2) + [Path.CLOSEPOLY]
-        ax.add_patch(PathPatch(Path(np.vstack(verts), codes), facecolor="#d9c9a3", edgecolor="#6b5a3a",
-                               lw=0.6, zorder=1))
+    for poly in polygons:        # ring sets hold open rings: close them for the patch
+        ax.add_patch(land_patch([np.vstack([r, r[:1]]) for r in map(np.asarray, polygon_rings(poly))]))
 
 
 def plot_map(result, run: int = 0, ax=None, n_instants: int = 5, ship_scale: float | None = None):

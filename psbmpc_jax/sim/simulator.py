@@ -33,7 +33,7 @@ from ..evaluate import evaluate, evaluate_arrays
 from ..params import params_as_arrays
 from ..planner import PlannerState, check_dtype, pack_situation, unpack
 from ..problem import Obstacle, OwnShip, Situation
-from ..scenario import Scenario
+from ..scenario import Scenario, _multiple_of
 from . import metrics as metrics_mod
 from .tracker import TrackerBank
 from .vessel import extend_route, kinematic_step, los_course, nominal_speed, pad_routes
@@ -124,13 +124,6 @@ def resolve_batch_mode(batch: str) -> str:
 
 
 # ------------------------------------------------------------------------------------------- helpers
-def _check_multiple(value: float, step: float, what: str) -> int:
-    n = value / step
-    if abs(n - round(n)) > 1e-9 * max(1.0, n) or round(n) < 1:
-        raise ValueError(f"{what} ({value} s) must be a positive multiple of the simulation step ({step} s)")
-    return int(round(n))
-
-
 def grid_region(scenario: Scenario, routes) -> tuple:
     """The area the distance grid must cover: every route and start, plus the farthest a ship can travel
     in one horizon, plus a 25 % allowance for avoidance manoeuvres off the routes.  Returns (region, reach):
@@ -208,9 +201,10 @@ class _ClosedLoop:
         self.sc, self.R, self.snapshot_run = scenario, runs, snapshot_run
         mpc, sensor, config = scenario.mpc, scenario.sensor, scenario.mpc.config
         dt = scenario.dt
-        self.K = _check_multiple(scenario.duration, dt, "duration")
-        self.mpc_every = _check_multiple(mpc.period, dt, "mpc.period")
-        self.meas_every = _check_multiple(sensor.period, dt, "sensor.period")
+        # scenarios built in code skip the loader's checks: the same check again, by the loader's helper
+        self.K = _multiple_of(scenario.duration, dt, "duration", "the simulation step dt")
+        self.mpc_every = _multiple_of(mpc.period, dt, "mpc.period", "the simulation step dt")
+        self.meas_every = _multiple_of(sensor.period, dt, "sensor.period", "the simulation step dt")
         ships = self.ships = scenario.ships
         n, self.n_tg = len(ships), len(ships) - 1
         self.routes_ext, self.n_wp = pad_routes([extend_route(s.waypoints) for s in ships])
@@ -404,7 +398,10 @@ def run_metrics(result: SimulationResult, r: int) -> dict:
     out["run"] = r
     ships = sc.ships
     if sc.polygons:
-        land = [float(np.min(metrics_mod.distance_to_land(states[i, :, :2], sc.polygons))) for i in range(len(ships))]
+        # the own-ship's distance is in the metrics already; the targets' are computed here
+        land = [out["min_distance_land_m"]] + [float(np.min(metrics_mod.distance_to_land(states[i, :, :2],
+                                                                                         sc.polygons)))
+                                               for i in range(1, len(ships))]
         out["ships_min_distance_land_m"] = {s.name: d for s, d in zip(ships, land)}
         out["ships_grounded"] = [s.name for s, d in zip(ships, land) if d < 0.5 * s.width]
     pairs, controlled = {}, []

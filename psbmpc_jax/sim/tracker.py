@@ -30,9 +30,9 @@ All functions are pure numpy (float64) and broadcast over any leading batch axes
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
+
+from .checks import positive_scalar
 
 __all__ = [
     "CONSERVATIVE_R_FACTOR",
@@ -59,17 +59,6 @@ H = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]])
 
 
 # ----------------------------------------------------------------------------------------------- validation
-def _positive_scalar(value, name: str, *, allow_zero: bool = False) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be a finite real number, got {value!r}") from exc
-    if not math.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
-        bound = ">= 0" if allow_zero else "> 0"
-        raise ValueError(f"{name} must be finite and {bound}, got {value!r}")
-    return v
-
-
 def _as_array(a, name: str, last_shape: tuple, *, finite: bool = True) -> np.ndarray:
     try:
         arr = np.asarray(a, dtype=float)
@@ -107,8 +96,8 @@ def cv_model(dt, sigma_a):
     Returns:
         ``(F [4, 4], Q [4, 4])``.
     """
-    dt = _positive_scalar(dt, "dt")
-    sigma_a = _positive_scalar(sigma_a, "sigma_a", allow_zero=True)
+    dt = positive_scalar(dt, "dt")
+    sigma_a = positive_scalar(sigma_a, "sigma_a", allow_zero=True)
     F = np.eye(4)
     F[0, 2] = F[1, 3] = dt
     q = sigma_a ** 2
@@ -135,8 +124,8 @@ def initiate(z, R, U_max, kappa=DEFAULT_KAPPA):
     z = _as_array(z, "z", (2,))
     R = _as_array(R, "R", (2, 2))
     _check_covariance(R, "R")
-    U_max = _positive_scalar(U_max, "U_max")
-    kappa = _positive_scalar(kappa, "kappa")
+    U_max = positive_scalar(U_max, "U_max")
+    kappa = positive_scalar(kappa, "kappa")
     batch = np.broadcast_shapes(z.shape[:-1], R.shape[:-2])
     x = np.zeros(batch + (4,))
     x[..., :2] = z
@@ -271,16 +260,16 @@ class TrackerBank:
         _check_covariance(R, "R_filter")
         self.batch_shape = shape
         self.R = R
-        self.sigma_a = _positive_scalar(sigma_a, "sigma_a", allow_zero=True)
-        self.U_max = _positive_scalar(U_max, "U_max")
-        self.kappa = _positive_scalar(kappa, "kappa")
+        self.sigma_a = positive_scalar(sigma_a, "sigma_a", allow_zero=True)
+        self.U_max = positive_scalar(U_max, "U_max")
+        self.kappa = positive_scalar(kappa, "kappa")
         self.initiated = np.zeros(shape, dtype=bool)
         self.x = np.full(shape + (4,), np.nan)
         self.P = np.full(shape + (4, 4), np.nan)
 
     def step(self, dt):
         """Predict every initiated track over ``dt`` seconds (> 0)."""
-        dt = _positive_scalar(dt, "dt")
+        dt = positive_scalar(dt, "dt")
         sel = self.initiated
         if np.any(sel):
             self.x[sel], self.P[sel] = predict(self.x[sel], self.P[sel], dt, self.sigma_a)

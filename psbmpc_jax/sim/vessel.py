@@ -10,14 +10,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..reference import wrap_angle as wrap
+
 #: How far the simulator extends every route beyond its last waypoint, along the last leg [m]: ships keep
 #: the last leg's course after their route ends (SPEC §2), and the planner sees the same extended line.
 ROUTE_EXTENSION_M = 20_000.0
-
-
-def wrap(a):
-    """Wrap angles to [-pi, pi)."""
-    return (np.asarray(a) + np.pi) % (2.0 * np.pi) - np.pi
 
 
 def extend_route(waypoints: np.ndarray) -> np.ndarray:
