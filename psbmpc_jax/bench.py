@@ -47,12 +47,22 @@ the slowest rate seen so far, per behaviour x (scenarios + vertices/100 + 1)) ex
 point once the budget is spent, is written with ``skipped: true`` and a ``skip_reason``; with a budget of 0
 every reference point is written as skipped ("reference disabled"). One running reference point is never
 interrupted, so the budget can be overshot by one point.
+
+Schedule (``--schedule``, field ``schedule``): ``interleaved`` (default) compiles and warms up every point of
+one sweep on one device first and then times them round-robin — repeat 1 of every point, repeat 2 of every
+point, ... — so a slow spell of a shared machine lands on all points of the sweep alike instead of on the few
+points measured during it; ``sequential`` times each point's repeats back to back.  On this project's shared
+2-core VM the sequential fig7s medians moved by up to 1.8x between spells (370 ms for 25 repeats, then
+206 ms, at one point), while the interleaved medians rose monotonically with n_ps (R² 0.99).  JAX records of
+an interleaved sweep are written when its last round ends; an interrupt (Ctrl-C) during the rounds writes
+every point timed so far with the repeats it got, then stops.
 """
 
 from __future__ import annotations
 
 import argparse
 import datetime as dt
+import itertools
 import json
 import os
 import platform as _platform
@@ -74,7 +84,7 @@ ESTIMATORS = ("quadrature", "mc", "ce")
 FIELDS = ("schema", "sweep", "swept", "impl", "platform", "device_kind", "n_devices", "host", "estimator", "dtype",
           "grounding_mode", "n_M", "n_cbs", "n_do", "n_ps", "n_so", "n_vertices", "n_ct", "T", "dt", "compile_s",
           "times_ms", "median_ms", "min_ms", "max_ms", "q1_ms", "q3_ms", "peak_memory_bytes", "memory_source",
-          "r_ct", "best", "n_pc_blocks", "skipped", "skip_reason", "versions", "commit", "timestamp")
+          "r_ct", "best", "n_pc_blocks", "schedule", "skipped", "skip_reason", "versions", "commit", "timestamp")
 
 #: (swept, values, fixed settings) per preset figure.
 PRESETS = {
@@ -88,6 +98,7 @@ PRESETS = {
     "smoke": ("n_cbs", (9, 39), {"n_ps": 1, "T": 10.0}),
 }
 PAPER_FIGS = ("fig5", "fig6", "fig7", "fig9", "fig10", "fig6s", "fig7s")
+SCHEDULES = ("interleaved", "sequential")
 
 
 # ----------------------------------------------------------------------------------------------- metadata
@@ -293,7 +304,12 @@ def add_bench_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--n-do", type=nonneg_int, default=None, help="obstacles when not swept (default 2)")
     p.add_argument("--T", type=positive_float, default=None, help="horizon [s] (default 150; smoke: 10)")
     p.add_argument("--dt", type=positive_float, default=0.5, help="time step [s] (default 0.5)")
-    p.add_argument("--repeats", type=positive_int, default=10, help="timed steady-state solves (default 10)")
+    p.add_argument("--repeats", type=positive_int, default=30, help="timed steady-state solves per point "
+                   "(default 30)")
+    p.add_argument("--schedule", choices=SCHEDULES, default="interleaved",
+                   help="interleaved (default): time the points of a sweep round-robin, one repeat each per "
+                        "round, so machine load drifts hit every point alike; sequential: each point's repeats "
+                        "back to back")
     p.add_argument("--warmup", type=nonneg_int, default=2, help="untimed solves after compiling (default 2)")
     p.add_argument("--reference-budget", type=nonneg_float, default=120.0,
                    help="total wall seconds for reference points (default 120; 0 disables the reference)")
@@ -404,7 +420,8 @@ class Runner:
         self.fh.write(json.dumps(rec) + "\n")
         self.fh.flush()
 
-    def run_jax(self, p, situation, behaviours, config, devices, multi: bool) -> dict:
+    def prepare_jax(self, p, situation, behaviours, config, devices, multi: bool) -> dict:
+        """Compile and warm up one point; returns its timing slot (the call, the record so far, no times)."""
         import jax
 
         from .evaluate import evaluate
@@ -429,13 +446,9 @@ class Runner:
             compiled = evaluate.lower(arrays, params, samples, config=config).compile()
             compile_s = time.perf_counter() - t0
             call = lambda: compiled(arrays, params, samples)  # noqa: E731
+            ev = None
         for _ in range(self.args.warmup):
             ev = jax.block_until_ready(call())
-        times = []
-        for _ in range(self.args.repeats):
-            t0 = time.perf_counter()
-            ev = jax.block_until_ready(call())
-            times.append(time.perf_counter() - t0)
         rec = self.base_record(p, situation, behaviours, "jax")
         peak = device_peak(dev)
         if peak is not None:
@@ -443,16 +456,41 @@ class Runner:
         else:
             rec.update(peak_memory_bytes=max(0, peak_rss_bytes() - rss0), memory_source="process_rss")
         rec.update(platform=dev.platform, device_kind=dev.device_kind, n_devices=len(devices) if multi else 1,
-                   compile_s=round(compile_s, 4), best=int(ev.best), n_pc_blocks=int(ev.n_pc_blocks),
-                   **stats_ms(times))
-        return rec
+                   compile_s=round(compile_s, 4), schedule=self.args.schedule)
+        return {"point": p, "call": call, "rec": rec, "ev": ev, "times": []}
+
+    def time_jax(self, slots) -> tuple[list, bool]:
+        """Time the prepared points, ``--repeats`` rounds of one call each (one slot: back to back).
+
+        Returns ``(point, record)`` pairs and whether a KeyboardInterrupt cut the rounds short (then only the
+        points with at least one timed repeat are returned, each with the repeats it got)."""
+        import jax
+
+        interrupted = False
+        try:
+            for _ in range(self.args.repeats):
+                for slot in slots:
+                    t0 = time.perf_counter()
+                    slot["ev"] = jax.block_until_ready(slot["call"]())
+                    slot["times"].append(time.perf_counter() - t0)
+        except KeyboardInterrupt:
+            interrupted = True
+        out = []
+        for slot in slots:
+            if not slot["times"]:
+                continue
+            rec, ev = slot["rec"], slot["ev"]
+            rec.update(best=int(ev.best), n_pc_blocks=int(ev.n_pc_blocks), **stats_ms(slot["times"]))
+            out.append((slot["point"], rec))
+        return out, interrupted
 
     def run_reference(self, p, situation, behaviours, config, samples) -> dict:
         from .params import Params
         from .reference import evaluate_reference
 
         rec = self.base_record(p, situation, behaviours, "reference")
-        rec.update(platform="cpu", device_kind="cpu", n_devices=1, dtype="float64", memory_source="process_rss")
+        rec.update(platform="cpu", device_kind="cpu", n_devices=1, dtype="float64", memory_source="process_rss",
+                   schedule="sequential")
         budget = self.args.reference_budget
         units = len(behaviours) * (rec["n_do"] * rec["n_ps"] + rec["n_vertices"] / 100.0 + 1.0) * config.n_steps
         left = budget - self.ref_used
@@ -522,23 +560,43 @@ def run_bench(args) -> int:
         val = ("skipped" if rec["skipped"] else f"{rec['median_ms']:.1f} ms")
         print(f"[{done}/{total}] {p.label()} {what} {val}", file=sys.stderr, flush=True)
 
+    def config_for(p):
+        return PlannerConfig(T=p.T, dt=args.dt, estimator=args.estimator, dtype=args.dtype,
+                             grounding_mode=args.grounding)
+
+    # interleaved: one timing group per (sweep, device run); sequential: one group per point
+    sweeps = [list(g) for _, g in itertools.groupby(points, key=lambda p: p.sweep)]
     with open(out, "a", encoding="utf-8") as fh:
         runner = Runner(args, fh)
-        for p in points:
-            behaviours = behaviours_for(p.n_cbs)
-            situation = _situation(p)
-            config = PlannerConfig(T=p.T, dt=args.dt, estimator=args.estimator, dtype=args.dtype,
-                                   grounding_mode=args.grounding)
+        for sweep_pts in sweeps:
+            items = [(p, behaviours_for(p.n_cbs), _situation(p)) for p in sweep_pts]
             for devs, multi in runs:
-                rec = runner.run_jax(p, situation, behaviours, config, devs, multi)
+                groups = [items] if args.schedule == "interleaved" else [[it] for it in items]
+                for group in groups:
+                    slots = []
+                    for p, beh, sit in group:
+                        slots.append(runner.prepare_jax(p, sit, beh, config_for(p), devs, multi))
+                        if not args.quiet and len(group) > 1:
+                            print(f"[{done}/{total}] {p.label()} jax/{devs[0].platform} compiled in "
+                                  f"{slots[-1]['rec']['compile_s']:.1f} s", file=sys.stderr, flush=True)
+                    if not args.quiet and len(group) > 1:
+                        print(f"[{done}/{total}] timing {len(group)} points round-robin, {args.repeats} rounds",
+                              file=sys.stderr, flush=True)
+                    recs, interrupted = runner.time_jax(slots)
+                    for p, rec in recs:
+                        runner.write(rec)
+                        done += 1
+                        progress(p, f"jax/{rec['platform']}" + (f" x{rec['n_devices']}" if multi else ""), rec)
+                    if interrupted:
+                        print(f"psbmpc-jax bench: interrupted; {done} records appended to {out}", file=sys.stderr)
+                        raise KeyboardInterrupt
+            for p, beh, sit in items:
+                config = config_for(p)
+                samples = _samples_for_reference(config, args.seed) if args.reference_budget > 0 else None
+                rec = runner.run_reference(p, sit, beh, config, samples)
                 runner.write(rec)
                 done += 1
-                progress(p, f"jax/{rec['platform']}" + (f" x{rec['n_devices']}" if multi else ""), rec)
-            samples = _samples_for_reference(config, args.seed) if args.reference_budget > 0 else None
-            rec = runner.run_reference(p, situation, behaviours, config, samples)
-            runner.write(rec)
-            done += 1
-            progress(p, "reference", rec)
+                progress(p, "reference", rec)
     if not args.quiet:
         print(f"psbmpc-jax bench: {done} records appended to {out} in {time.perf_counter() - t_start:.0f} s",
               file=sys.stderr)

@@ -39,6 +39,7 @@ REQUIRED_FIELDS = (
     "peak_memory_bytes", "memory_source", "best", "skipped", "skip_reason", "versions", "commit", "timestamp",
 )
 SWEPT_SIZES = ("n_cbs", "n_ps", "n_do", "n_so", "n_vertices")
+SCHEDULES = ("interleaved", "sequential")
 _INT_FIELDS = ("n_devices", "n_M", "n_cbs", "n_do", "n_ps", "n_so", "n_vertices", "n_ct")
 
 # Paper figures: (key, sweep name, swept size, fixed n_cbs or None, title)
@@ -97,6 +98,8 @@ def _validate(rec, where: str) -> None:
             raise ValueError(f"{where}: field {f!r} must be a string, got {rec[f]!r}")
     if not isinstance(rec["versions"], dict):
         raise ValueError(f"{where}: field 'versions' must be an object")
+    if rec.get("schedule", "sequential") not in SCHEDULES:
+        raise ValueError(f"{where}: field 'schedule' must be one of {SCHEDULES}, got {rec['schedule']!r}")
 
 
 def load_results(paths) -> list[dict]:
@@ -128,6 +131,7 @@ def load_results(paths) -> list[dict]:
                     raise ValueError(f"{where}: malformed JSON ({e.msg} at column {e.colno})") from None
                 _validate(rec, where)
                 rec = dict(rec)
+                rec.setdefault("schedule", "sequential")   # files written before the field: always sequential
                 rec["_source"] = where
                 records.append(rec)
     if not records:
@@ -371,6 +375,9 @@ def _config_line(pts):
             parts.append(f"{f}={vals[0]}")
         else:
             parts.append(f"{f}∈{{{', '.join(vals[:6])}{', …' if len(vals) > 6 else ''}}}")
+    sched = sorted({r["schedule"] for r in recs if r["impl"] == "jax"})
+    if sched:
+        parts.append(f"JAX timing schedule: {'/'.join(sched)}")
     return "Configuration: " + ", ".join(parts) + "."
 
 

@@ -42,6 +42,9 @@ def check_record(rec):
     assert rec["skip_reason"] is None or isinstance(rec["skip_reason"], str)
     assert set(rec["versions"]) == {"python", "jax", "jaxlib", "numpy"}
     assert rec["impl"] in ("jax", "reference")
+    assert rec["schedule"] in ("interleaved", "sequential")
+    if rec["impl"] == "reference":
+        assert rec["schedule"] == "sequential"
     assert rec["n_ct"] == rec["n_cbs"] * (rec["n_so"] + rec["n_do"] * rec["n_ps"])
     if rec["skipped"]:
         assert rec["times_ms"] == [] and rec["median_ms"] is None and rec["skip_reason"]
@@ -113,6 +116,7 @@ def test_tiny_budget_skips_with_reason(tmp_path):
     (["--preset", "smoke", "--reference-budget", "-1"], "--reference-budget"),
     (["--preset", "smoke", "--T", "10", "--dt", "0.3"], "--dt"),
     (["--preset", "smoke", "--devices", "tpu"], "--devices"),
+    (["--preset", "smoke", "--schedule", "random"], "--schedule"),
 ])
 def test_bad_arguments_give_clear_errors(argv, needle, capsys, tmp_path):
     with pytest.raises(SystemExit) as exc:
@@ -144,3 +148,63 @@ def test_fixed_fan_presets_scale_r_ct():
     assert all((p.n_ps - 1) * p.r_ct == pytest.approx(40.0) for p in pts[1:])
     assert all(p.r_ct == 10.0 for p in build_plan(ap.parse_args(["--preset", "fig7"])))
     assert {p.sweep for p in build_plan(ap.parse_args(["--preset", "paper"]))} >= {"fig6s", "fig7s"}
+
+
+def test_sequential_schedule_gives_the_same_answers(tmp_path):
+    inter, seq = tmp_path / "i.jsonl", tmp_path / "s.jsonl"
+    assert main(["bench", "--preset", "smoke", "--reference-budget", "0", "--out", str(inter), *FAST]) == 0
+    assert main(["bench", "--preset", "smoke", "--reference-budget", "0", "--schedule", "sequential",
+                 "--out", str(seq), *FAST]) == 0
+    ri = [r for r in read(inter) if r["impl"] == "jax"]
+    rs = [r for r in read(seq) if r["impl"] == "jax"]
+    assert [r["schedule"] for r in ri] == ["interleaved"] * 2 and [r["schedule"] for r in rs] == ["sequential"] * 2
+    for a, b in zip(ri, rs):
+        check_record(a)
+        check_record(b)
+        assert (a["n_cbs"], a["best"], a["n_pc_blocks"]) == (b["n_cbs"], b["best"], b["n_pc_blocks"])
+        assert len(a["times_ms"]) == len(b["times_ms"]) == 2
+
+
+class _FakeEval:
+    def __init__(self, best):
+        self.best, self.n_pc_blocks = best, 7
+
+
+def _fake_slots(log, fail_at=None):
+    """Two timing slots whose calls append to ``log``; call number ``fail_at`` raises KeyboardInterrupt."""
+    from psbmpc_jax.bench import FIELDS
+
+    def make(name, best):
+        def call():
+            if fail_at is not None and len(log) == fail_at:
+                raise KeyboardInterrupt
+            log.append(name)
+            return _FakeEval(best)
+        return {"point": name, "call": call, "rec": dict.fromkeys(FIELDS), "ev": None, "times": []}
+
+    return [make("a", 1), make("b", 2)]
+
+
+def _runner(repeats):
+    import argparse
+
+    from psbmpc_jax.bench import Runner
+
+    return Runner(argparse.Namespace(repeats=repeats), fh=None)
+
+
+def test_interleaved_rounds_alternate_points():
+    log = []
+    recs, interrupted = _runner(3).time_jax(_fake_slots(log))
+    assert log == ["a", "b", "a", "b", "a", "b"] and not interrupted
+    assert [(p, r["best"], r["n_pc_blocks"], len(r["times_ms"])) for p, r in recs] == [("a", 1, 7, 3), ("b", 2, 7, 3)]
+
+
+def test_interrupt_keeps_the_repeats_timed_so_far():
+    log = []
+    recs, interrupted = _runner(5).time_jax(_fake_slots(log, fail_at=3))     # a, b, a, then Ctrl-C
+    assert interrupted and log == ["a", "b", "a"]
+    assert [(p, len(r["times_ms"])) for p, r in recs] == [("a", 2), ("b", 1)]
+    log = []
+    recs, interrupted = _runner(5).time_jax(_fake_slots(log, fail_at=0))     # nothing timed: nothing written
+    assert interrupted and recs == []

@@ -137,6 +137,7 @@ def _first_record():
     (lambda lines: ["[1, 2]"], r"bad\.jsonl:1: expected a JSON object"),
     (lambda lines: [json.dumps({**_first_record(), "times_ms": []})], r"not skipped but 'times_ms' is empty"),
     (lambda lines: [], r"empty input"),
+    (lambda lines: [json.dumps({**_first_record(), "schedule": "random"})], r"bad\.jsonl:1: field 'schedule'"),
 ])
 def test_malformed_inputs(tmp_path, mutate, message):
     bad = tmp_path / "bad.jsonl"
@@ -202,3 +203,15 @@ def test_work_fit_section_from_n_pc_blocks(tmp_path):
     # files without the field (older results) render without the section
     md_old = report.write_report(report.load_results([CPU]), tmp_path / "old").read_text()
     assert "evaluated collision work" not in md_old
+
+
+def test_schedule_defaults_to_sequential_and_shows_in_config(tmp_path):
+    """Files written before the ``schedule`` field were timed point by point: they load as sequential."""
+    recs = report.load_results([CPU])
+    assert "schedule" not in _first_record() and {r["schedule"] for r in recs} == {"sequential"}
+    lines = [json.loads(x) for x in CPU.read_text().splitlines() if x.strip()]
+    f = tmp_path / "inter.jsonl"
+    f.write_text("".join(json.dumps({**r, "schedule": "interleaved" if r["impl"] == "jax" else "sequential"}) + "\n"
+                         for r in lines))
+    md = report.write_report(report.load_results([f]), tmp_path / "out").read_text()
+    assert "JAX timing schedule: interleaved" in md and "JAX timing schedule: sequential" not in md
