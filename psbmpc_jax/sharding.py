@@ -132,23 +132,13 @@ def pad_behaviours(behaviours, beh_mask, n_devices: int):
     return beh, mask
 
 
-def evaluate_sharded(arrays: SituationArrays, params: Params, samples, config: PlannerConfig,
-                     devices: Sequence | None = None) -> Evaluation:
-    """:func:`psbmpc_jax.evaluate.evaluate` with the behaviour axis split over ``devices``.
+def sharded_call(arrays: SituationArrays, params: Params, samples, config: PlannerConfig,
+                 devices: Sequence | None = None):
+    """The pieces of :func:`evaluate_sharded`: ``(fn, args, n_b)`` with ``fn(*args, n_b=n_b)`` its result.
 
-    Args:
-        arrays, params, samples: as returned by :meth:`psbmpc_jax.Planner.prepare`.
-        config: the static :class:`PlannerConfig` (hashable; part of the compile cache key).
-        devices: local devices of one platform (default ``jax.local_devices()``).
-
-    Returns:
-        An :class:`Evaluation` with the same shapes as the single-device evaluator's (see the module
-        docstring for the layout and the one difference, ``n_pc_blocks`` under padding).
-
-    Raises:
-        ValueError: empty or mixed-platform (or duplicated) device list, an empty behaviour table, or no
-            real (unmasked) behaviour.
-    """
+    ``fn`` is the jitted sharded evaluator, ``args`` the validated inputs, padded and placed on the device
+    mesh; ahead-of-time use (as the benchmark does): ``fn.lower(*args, n_b=n_b).compile()(*args)``.
+    Arguments and errors as :func:`evaluate_sharded`."""
     if not isinstance(arrays, SituationArrays):
         raise ValueError(f"arrays must be a SituationArrays, got {type(arrays).__name__}")
     if not isinstance(config, PlannerConfig):
@@ -171,7 +161,28 @@ def evaluate_sharded(arrays: SituationArrays, params: Params, samples, config: P
     params = jax.device_put(params, rep_sharding)
     if samples is not None:
         samples = jax.device_put(samples, rep_sharding)
-    return fn(arrays, params, samples, n_b=n_b)
+    return fn, (arrays, params, samples), n_b
 
 
-__all__ = ["evaluate_sharded", "check_devices", "pad_behaviours"]
+def evaluate_sharded(arrays: SituationArrays, params: Params, samples, config: PlannerConfig,
+                     devices: Sequence | None = None) -> Evaluation:
+    """:func:`psbmpc_jax.evaluate.evaluate` with the behaviour axis split over ``devices``.
+
+    Args:
+        arrays, params, samples: as returned by :meth:`psbmpc_jax.Planner.prepare`.
+        config: the static :class:`PlannerConfig` (hashable; part of the compile cache key).
+        devices: local devices of one platform (default ``jax.local_devices()``).
+
+    Returns:
+        An :class:`Evaluation` with the same shapes as the single-device evaluator's (see the module
+        docstring for the layout and the one difference, ``n_pc_blocks`` under padding).
+
+    Raises:
+        ValueError: empty or mixed-platform (or duplicated) device list, an empty behaviour table, or no
+            real (unmasked) behaviour.
+    """
+    fn, args, n_b = sharded_call(arrays, params, samples, config, devices)
+    return fn(*args, n_b=n_b)
+
+
+__all__ = ["evaluate_sharded", "sharded_call", "check_devices", "pad_behaviours"]

@@ -3,6 +3,10 @@
 from __future__ import annotations
 
 import json
+import os
+import subprocess
+import sys
+from pathlib import Path
 
 import pytest
 
@@ -208,3 +212,37 @@ def test_interrupt_keeps_the_repeats_timed_so_far():
     log = []
     recs, interrupted = _runner(5).time_jax(_fake_slots(log, fail_at=0))     # nothing timed: nothing written
     assert interrupted and recs == []
+
+
+def test_compile_time_is_a_real_compile_for_repeated_shapes(tmp_path):
+    """Two points with the same shapes: the second must compile again, not load the first's executable
+    (a cache hit takes ~1 ms, a compile of the evaluator hundreds of ms)."""
+    out = tmp_path / "b.jsonl"
+    assert main(["bench", "--sweep", "n_cbs", "--values", "9,9", "--T", "10", "--reference-budget", "0",
+                 "--out", str(out), *FAST]) == 0
+    jax_recs = [r for r in read(out) if r["impl"] == "jax"]
+    assert len(jax_recs) == 2 and all(r["compile_s"] > 0.05 for r in jax_recs), [r["compile_s"] for r in jax_recs]
+
+
+def test_multi_device_points_match_single_device(tmp_path):
+    """--multi-device on 2 forced host devices (a subprocess: the device count is fixed once JAX starts):
+    a sharded record per point, compiled ahead of time, with the single-device answer."""
+    out = tmp_path / "md.jsonl"
+    root = Path(__file__).resolve().parents[1]
+    env = dict(os.environ, JAX_PLATFORMS="cpu")
+    env["XLA_FLAGS"] = (env.get("XLA_FLAGS", "") + " --xla_force_host_platform_device_count=2").strip()
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (str(root), env.get("PYTHONPATH")) if p)
+    code = ("import sys; from psbmpc_jax.cli import main; sys.exit(main(['bench', '--preset', 'smoke', "
+            "'--multi-device', '--reference-budget', '0', '--out', sys.argv[1], "
+            + ", ".join(repr(a) for a in FAST) + "]))")
+    proc = subprocess.run([sys.executable, "-c", code, str(out)], env=env, capture_output=True, text=True,
+                          timeout=300, cwd=str(root))
+    assert proc.returncode == 0, proc.stderr[-4000:]
+    recs = [r for r in read(out) if r["impl"] == "jax"]
+    for rec in recs:
+        check_record(rec)
+    single = {r["n_cbs"]: r for r in recs if r["n_devices"] == 1}
+    multi = {r["n_cbs"]: r for r in recs if r["n_devices"] == 2}
+    assert sorted(single) == sorted(multi) == [9, 39]
+    for n, r in multi.items():
+        assert r["best"] == single[n]["best"] and len(r["times_ms"]) == 2 and r["compile_s"] > 0.05
