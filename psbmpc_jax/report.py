@@ -296,7 +296,15 @@ def _boxplot(path, title, swept, pts, *, dpi=110):
         colours[lab] = _COLOURS.get(lab) or next(extra)
     nl = len(labels)
     width = 0.8 / nl
-    fig, ax = plt.subplots(figsize=(max(6.5, 1.1 * len(xs) * max(1, nl / 2) + 2), 4.6))
+    jax_labels = [lab for lab in labels if lab != "reference"]
+    # second panel: JAX alone on a linear, true-to-scale x axis with its least-squares line (the reference
+    # is 10-100x slower and flattens the JAX boxes in the first panel)
+    fit_panel = bool(jax_labels) and len(xs) >= 3 and swept != "n_vertices"
+    w_main = max(6.5, 1.1 * len(xs) * max(1, nl / 2) + 2)
+    if fit_panel:
+        fig, (ax, ax2) = plt.subplots(1, 2, figsize=(w_main + 5.5, 4.6), width_ratios=(w_main, 5.5))
+    else:
+        fig, ax = plt.subplots(figsize=(w_main, 4.6))
     all_t = [t for x in xs for c in pts[x].values() for t in c.times if t > 0]
     log = bool(all_t) and max(all_t) / min(all_t) > 100.0
     skipped_marks = []
@@ -334,9 +342,45 @@ def _boxplot(path, title, swept, pts, *, dpi=110):
     ax.grid(True, axis="y", which="both", alpha=0.3)
     ax.legend(handles=[Patch(facecolor=colours[lab], alpha=0.75, label=lab) for lab in labels],
               loc="upper left", fontsize=8)
+    if fit_panel:
+        _jax_fit_panel(ax2, swept, xs, jax_labels, pts, colours)
     fig.tight_layout()
     fig.savefig(path, dpi=dpi)
     plt.close(fig)
+
+
+def _jax_fit_panel(ax, swept, xs, labels, pts, colours):
+    """JAX series only: box plots at their true x and the least-squares line through the medians."""
+    span = float(max(xs) - min(xs)) or 1.0
+    width = 0.5 * span / max(len(xs), 2) / len(labels)
+    for j, lab in enumerate(labels):
+        px, med, boxes = [], [], []
+        for x in xs:
+            cell = pts[x].get(lab)
+            if cell is not None and cell.times:
+                px.append(float(x) + (j - (len(labels) - 1) / 2) * width)
+                med.append(cell.median)
+                boxes.append(cell.times)
+        if not boxes:
+            continue
+        bp = ax.boxplot(boxes, positions=px, widths=width * 0.85, patch_artist=True, showfliers=True,
+                        manage_ticks=False, flierprops=dict(marker="+", markersize=4, markeredgecolor=colours[lab]),
+                        medianprops=dict(color="black", lw=1.2))
+        for b in bp["boxes"]:
+            b.set_facecolor(colours[lab])
+            b.set_alpha(0.75)
+        if len(px) >= 2:
+            fit = linear_fit([float(x) for x in xs if pts[x].get(lab) is not None and pts[x][lab].times], med)
+            line_x = np.array([min(xs), max(xs)], float)
+            r2 = "" if math.isnan(fit["r2"]) else f", R² = {fit['r2']:.3f}"
+            ax.plot(line_x, fit["slope"] * line_x + fit["intercept"], color=colours[lab], lw=1.2, ls="--",
+                    label=f"{lab}: {fit['slope']:.3g} ms/unit{r2}")
+    ax.set_xlim(min(xs) - 0.06 * span, max(xs) + 0.06 * span)
+    ax.set_xlabel(swept)
+    ax.set_ylabel("runtime [ms]")
+    ax.set_title("JAX only, linear axes, least-squares line of the medians", fontsize=9)
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="upper left", fontsize=8)
 
 
 # --------------------------------------------------------------------------------------------- report
@@ -488,7 +532,7 @@ def _fits(groups):
 
 def _work_fits(groups):
     """Runtime against the work the collision estimator actually did (``n_pc_blocks``, recorded by JAX runs):
-    the σ-shortcut skips far (l, i, s, k) points, so runtime grows with the active work, not with n_ct."""
+    the σ-shortcut skips far (l, i, s, k) points, so that part of the runtime grows with the active work."""
     rows = []
     for key in _sorted_keys(groups):
         if key[1] != "n_ps":
@@ -513,8 +557,12 @@ def _work_fits(groups):
         return []
     return ["## Runtime vs evaluated collision work (n_ps sweeps)", "",
             "`n_pc_blocks` = (row, time-block) pairs the collision-probability estimator evaluated after the "
-            "σ-shortcut (SPEC §6). Far prediction scenarios never come within d_safe + c_σ·σ of a candidate "
-            "trajectory and cost nothing, so runtime follows this work rather than n_ps itself.", "",
+            "σ-shortcut (SPEC §6): far prediction scenarios never come within d_safe + c_σ·σ of a candidate "
+            "trajectory and skip the estimator. The runtime has two n_ps-dependent parts: the dense pass over "
+            "every (time, scenario, behaviour) point (COLREGS flags and the σ test), linear in n_ps, and the "
+            "estimator, linear in n_pc_blocks. Where the blocks saturate (a fixed r_ct fans the outer scenarios "
+            "far away) the runtime keeps rising with n_ps through the dense pass, and this fit is poorer than "
+            "the one against n_ps above; where the blocks grow with n_ps (a fixed fan) both fit.", "",
             "| sweep | implementation | points | n_pc_blocks range | slope [µs/block] | intercept [ms] | R² |",
             "|---|---|---|---|---|---|---|"] + rows + [""]
 
