@@ -22,8 +22,9 @@ Behaviour sets per ``n_cbs`` (course offsets "k evenly spaced" = ``numpy.linspac
   evenly spaced courses;
 * other sweeps use the paper set of ``--n-m`` (default 2: 1014 behaviours).
 
-Presets (``--preset paper --reference-budget 1500`` measured 439 s on this project's 2-core CPU, 68 records, no
-reference point skipped; with the default budget of 120 s the later reference points are written as skipped):
+Presets (``--preset paper --reference-budget 1500 --repeats 60`` measured 863 s on this project's 2-core
+CPU, 92 records, no reference point skipped; with the default budget of 120 s the later reference
+points are written as skipped):
 
 * ``fig5``: n_cbs in 9, 39, 156, 390, 1014, 2028 (n_ps = 1)
 * ``fig6``: n_ps in 1, 11, 21, 41, 61, 81, 101 at n_cbs = 39 (the paper's Fig. 6 range)
