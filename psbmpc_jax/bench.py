@@ -1,7 +1,8 @@
 """Runtime benchmark sweeps (paper Sec. IV-B/C, Figs. 5, 6, 7, 9, 10): ``psbmpc-jax bench``.
 
 Every point is written as one JSON Lines record in the ``psbmpc-bench/1`` format of ``docs/bench_schema.md``
-(appended and flushed as soon as it is measured, so an interrupted sweep keeps what it measured).
+(appended and flushed as soon as it is measured: the JAX points of a sweep after their interleaved rounds,
+see Schedule below; so an interrupted sweep keeps what it measured).
 
 Situations (all on the Trondheim chart, :func:`psbmpc_jax.examples.nidelva_head_on`):
 
