@@ -42,7 +42,9 @@ points are written as skipped):
 Per point and platform: compile time (``lower().compile()``), ``--warmup`` untimed calls, ``--repeats`` timed
 calls with ``block_until_ready``, statistics, peak memory (device ``memory_stats()["peak_bytes_in_use"]``,
 a process-lifetime peak, where the device reports it; else the growth of the process peak RSS during the
-point), the chosen behaviour. Reference points (``impl = "reference"``: the float64 sequential NumPy
+point), the memory XLA planned for one call of the compiled solve (``compiled_memory_bytes``: arguments +
+outputs + temporaries, a per-point figure that, unlike the peaks, does not depend on what ran before), the
+chosen behaviour. Reference points (``impl = "reference"``: the float64 sequential NumPy
 evaluator on the same situation and sample table) run ``--reference-repeats`` times (default 1) while the
 total reference wall time stays within ``--reference-budget`` seconds: a point whose estimated time (from
 the slowest rate seen so far, per behaviour x (scenarios + vertices/100 + 1)) exceeds what is left, or any
@@ -86,7 +88,7 @@ ESTIMATORS = ("quadrature", "mc", "ce")
 FIELDS = ("schema", "sweep", "swept", "impl", "platform", "device_kind", "n_devices", "host", "estimator", "dtype",
           "grounding_mode", "n_M", "n_cbs", "n_do", "n_ps", "n_so", "n_vertices", "n_ct", "T", "dt", "compile_s",
           "times_ms", "median_ms", "min_ms", "max_ms", "q1_ms", "q3_ms", "peak_memory_bytes", "memory_source",
-          "r_ct", "best", "n_pc_blocks", "schedule", "skipped", "skip_reason", "versions", "commit", "timestamp")
+          "compiled_memory_bytes", "r_ct", "best", "n_pc_blocks", "schedule", "skipped", "skip_reason", "versions", "commit", "timestamp")
 
 #: (swept, values, fixed settings) per preset figure.
 PRESETS = {
@@ -140,6 +142,20 @@ def stats_ms(times_s) -> dict:
 def peak_rss_bytes() -> int:
     r = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     return int(r) if sys.platform == "darwin" else int(r) * 1024
+
+
+def compiled_memory_bytes(compiled):
+    """Device memory XLA planned for one call of a compiled executable (per device for a sharded one):
+    arguments + outputs + temporaries - aliased buffers; None where the backend does not report it.
+
+    Unlike the device or process peak this belongs to the point alone and is the same on every run."""
+    try:
+        m = compiled.memory_analysis()
+    except Exception:  # noqa: BLE001 - not every backend implements it
+        return None
+    if m is None:
+        return None
+    return int(m.argument_size_in_bytes + m.output_size_in_bytes + m.temp_size_in_bytes - m.alias_size_in_bytes)
 
 
 def device_peak(device):
@@ -450,6 +466,7 @@ class Runner:
             compiled = evaluate.lower(*args, config=config).compile()
         compile_s = time.perf_counter() - t0
         call = lambda: compiled(*args)  # noqa: E731
+        planned = compiled_memory_bytes(compiled)
         ev = None
         for _ in range(self.args.warmup):
             ev = jax.block_until_ready(call())
@@ -460,7 +477,7 @@ class Runner:
         else:
             rec.update(peak_memory_bytes=max(0, peak_rss_bytes() - rss0), memory_source="process_rss")
         rec.update(platform=dev.platform, device_kind=dev.device_kind, n_devices=len(devices) if multi else 1,
-                   compile_s=round(compile_s, 4), schedule=self.args.schedule)
+                   compile_s=round(compile_s, 4), schedule=self.args.schedule, compiled_memory_bytes=planned)
         return {"point": p, "call": call, "rec": rec, "ev": ev, "times": []}
 
     def time_jax(self, slots) -> tuple[list, bool]:

@@ -425,6 +425,14 @@ def _config_line(pts):
     return "Configuration: " + ", ".join(parts) + "."
 
 
+def _planned_bytes(cell):
+    """``compiled_memory_bytes`` of a cell's measured records (None when absent: older files, the reference)."""
+    if cell is None:
+        return None
+    vals = [r.get("compiled_memory_bytes") for r in cell.measured if r.get("compiled_memory_bytes")]
+    return max(vals) if vals else None
+
+
 def _speedup_table(key, pts, n_ct):
     sweep, swept = key
     labels = _label_order(lab for cells in pts.values() for lab in cells)
@@ -436,6 +444,8 @@ def _speedup_table(key, pts, n_ct):
         cols += [f"{lab} vs reference" for lab in jax_labels]
     if cpu:
         cols += [f"{g} vs JAX-CPU" for g in gpus]
+    mem_labels = [lab for lab in jax_labels if any(_planned_bytes(cells.get(lab)) for cells in pts.values())]
+    cols += [f"{lab} planned memory [MB]" for lab in mem_labels]
     lines = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
     reasons = set()
     for x in sorted(pts):
@@ -460,6 +470,9 @@ def _speedup_table(key, pts, n_ct):
         if cpu:
             for g in gpus:
                 row.append(_fmt_x(med[cpu] / med[g]) if med[cpu] and med[g] else "—")
+        for lab in mem_labels:
+            b = _planned_bytes(cells.get(lab))
+            row.append(f"{b / 1e6:.3g}" if b else "—")
         lines.append("| " + " | ".join(row) + " |")
     if reasons:
         lines += ["", "† skipped point (not measured): " + "; ".join(sorted(reasons)) + "."]
@@ -641,7 +654,9 @@ def write_report(records, out_dir) -> pathlib.Path:
     # speed-up tables
     lines += ["## Speed-up tables", "",
               "Median runtime of each implementation per point; speed-up = median(baseline) / median(JAX). "
-              "SKIPPED† = point not measured (kept in the input, listed with its reason).", ""]
+              "SKIPPED† = point not measured (kept in the input, listed with its reason). Planned memory = "
+              "`compiled_memory_bytes`: the device memory XLA planned for one solve (arguments + outputs + "
+              "temporaries; per device when sharded), where the records have it.", ""]
     for key in _sorted_keys(groups):
         lines += [f"### Sweep `{key[0]}` (swept {key[1]})", "", _config_line(groups[key]), ""]
         lines += _speedup_table(key, groups[key], n_ct) + [""]

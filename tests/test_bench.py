@@ -41,6 +41,10 @@ def check_record(rec):
     assert isinstance(rec["times_ms"], list) and all(isinstance(t, float) for t in rec["times_ms"])
     assert rec["peak_memory_bytes"] is None or isinstance(rec["peak_memory_bytes"], int)
     assert rec["memory_source"] in ("device", "process_rss")
+    if rec["impl"] == "jax" and not rec["skipped"]:
+        assert isinstance(rec["compiled_memory_bytes"], int) and rec["compiled_memory_bytes"] > 0
+    else:
+        assert rec["compiled_memory_bytes"] is None
     assert rec["best"] is None or isinstance(rec["best"], int)
     assert isinstance(rec["skipped"], bool)
     assert rec["skip_reason"] is None or isinstance(rec["skip_reason"], str)
@@ -246,3 +250,13 @@ def test_multi_device_points_match_single_device(tmp_path):
     assert sorted(single) == sorted(multi) == [9, 39]
     for n, r in multi.items():
         assert r["best"] == single[n]["best"] and len(r["times_ms"]) == 2 and r["compile_s"] > 0.05
+
+
+def test_compiled_memory_grows_with_the_problem(tmp_path):
+    """The planned memory of a solve is the point's own: more behaviours (39 and 390: different padded sizes),
+    more bytes; the same point twice, the same bytes (the process peak RSS cannot tell either)."""
+    out = tmp_path / "m.jsonl"
+    assert main(["bench", "--sweep", "n_cbs", "--values", "39,390,39", "--T", "10", "--reference-budget", "0",
+                 "--out", str(out), *FAST]) == 0
+    mem = [r["compiled_memory_bytes"] for r in read(out) if r["impl"] == "jax"]
+    assert mem[1] > mem[0] and mem[2] == mem[0]

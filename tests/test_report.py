@@ -215,3 +215,19 @@ def test_schedule_defaults_to_sequential_and_shows_in_config(tmp_path):
                          for r in lines))
     md = report.write_report(report.load_results([f]), tmp_path / "out").read_text()
     assert "JAX timing schedule: interleaved" in md and "JAX timing schedule: sequential" not in md
+
+
+def test_planned_memory_column(tmp_path):
+    """compiled_memory_bytes shows as a per-implementation column in the speed-up tables (MB); files without
+    the field (the fixtures) get no such column."""
+    lines = [json.loads(x) for x in CPU.read_text().splitlines() if x.strip()]
+    assert "compiled_memory_bytes" not in lines[0]
+    plain = report.write_report(report.load_results([CPU]), tmp_path / "a").read_text()
+    assert "planned memory [MB] |" not in plain
+    f = tmp_path / "mem.jsonl"
+    f.write_text("".join(json.dumps({**r, "compiled_memory_bytes": (r["n_cbs"] * 1000 if r["impl"] == "jax"
+                                                                   else None)}) + "\n" for r in lines))
+    md = report.write_report(report.load_results([f]), tmp_path / "b").read_text()
+    assert "JAX-CPU planned memory [MB]" in md
+    row = next(x for x in md.splitlines() if x.startswith("| 1014 |") and "planned" not in x)
+    assert row.rstrip(" |").endswith("1.01")     # 1014 * 1000 bytes = 1.01 MB
