@@ -315,13 +315,7 @@ def _boxplot(path, title, swept, pts, *, dpi=110):
             if cell is None:
                 continue
             if cell.times:
-                bp = ax.boxplot([cell.times], positions=[pos], widths=width * 0.85, patch_artist=True,
-                                showfliers=True, manage_ticks=False,
-                                flierprops=dict(marker="+", markersize=4, markeredgecolor=colours[lab]),
-                                medianprops=dict(color="black", lw=1.2))
-                for b in bp["boxes"]:
-                    b.set_facecolor(colours[lab])
-                    b.set_alpha(0.75)
+                _boxes(ax, [cell.times], [pos], width, colours[lab])
             elif cell.skipped:
                 skipped_marks.append((pos, lab))
     if log:
@@ -349,28 +343,28 @@ def _boxplot(path, title, swept, pts, *, dpi=110):
     plt.close(fig)
 
 
+def _boxes(ax, data, positions, width, colour):
+    """One implementation's box plots (filled in its colour, black median, '+' outliers)."""
+    bp = ax.boxplot(data, positions=positions, widths=width * 0.85, patch_artist=True, showfliers=True,
+                    manage_ticks=False, flierprops=dict(marker="+", markersize=4, markeredgecolor=colour),
+                    medianprops=dict(color="black", lw=1.2))
+    for b in bp["boxes"]:
+        b.set_facecolor(colour)
+        b.set_alpha(0.75)
+
+
 def _jax_fit_panel(ax, swept, xs, labels, pts, colours):
     """JAX series only: box plots at their true x and the least-squares line through the medians."""
     span = float(max(xs) - min(xs)) or 1.0
     width = 0.5 * span / max(len(xs), 2) / len(labels)
     for j, lab in enumerate(labels):
-        px, med, boxes = [], [], []
-        for x in xs:
-            cell = pts[x].get(lab)
-            if cell is not None and cell.times:
-                px.append(float(x) + (j - (len(labels) - 1) / 2) * width)
-                med.append(cell.median)
-                boxes.append(cell.times)
-        if not boxes:
+        cells = [(float(x), pts[x][lab]) for x in xs if pts[x].get(lab) is not None and pts[x][lab].times]
+        if not cells:
             continue
-        bp = ax.boxplot(boxes, positions=px, widths=width * 0.85, patch_artist=True, showfliers=True,
-                        manage_ticks=False, flierprops=dict(marker="+", markersize=4, markeredgecolor=colours[lab]),
-                        medianprops=dict(color="black", lw=1.2))
-        for b in bp["boxes"]:
-            b.set_facecolor(colours[lab])
-            b.set_alpha(0.75)
-        if len(px) >= 2:
-            fit = linear_fit([float(x) for x in xs if pts[x].get(lab) is not None and pts[x][lab].times], med)
+        shift = (j - (len(labels) - 1) / 2) * width
+        _boxes(ax, [c.times for _, c in cells], [x + shift for x, _ in cells], width, colours[lab])
+        if len(cells) >= 2:
+            fit = linear_fit([x for x, _ in cells], [c.median for _, c in cells])
             line_x = np.array([min(xs), max(xs)], float)
             r2 = "" if math.isnan(fit["r2"]) else f", R² = {fit['r2']:.3f}"
             ax.plot(line_x, fit["slope"] * line_x + fit["intercept"], color=colours[lab], lw=1.2, ls="--",
