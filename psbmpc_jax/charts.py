@@ -52,7 +52,7 @@ from shapely.geometry import MultiPolygon, Point, Polygon
 
 __all__ = [
     "Chart", "load_chart", "load_psbmpc_csv", "load_shapefile", "load_geojson", "trondheim_chart",
-    "range_filter", "to_rings", "to_ring_sets", "combine_charts",
+    "range_filter", "to_rings", "to_ring_sets", "combine_charts", "count_vertices", "BUILTIN_CHARTS",
     "parse_crs", "CRSInfo", "lonlat_to_utm", "utm_to_lonlat", "utm_zone_for", "convert_utm",
     "TABLE2_FILE_INDICES", "PIREN_ORIGIN_LATLON", "NIDELVA_OWN_SHIP_UTM", "nidelva_own_ship_ned",
 ]
@@ -327,7 +327,7 @@ class Chart:
     @property
     def total_vertices(self) -> int:
         """Vertices of all rings, holes included."""
-        return sum(len(p.exterior.coords) - 1 + sum(len(r.coords) - 1 for r in p.interiors) for p in self.polygons)
+        return count_vertices(self.polygons)
 
     # ------------------------------------------------------------------ frames
     def utm_to_local(self, points) -> np.ndarray:
@@ -801,15 +801,21 @@ def load_shapefile(path, origin=None, layer=None, *, crs: str | None = None, zon
     return _load_shapefile_sources(sources, str(p), origin, layer if p.is_dir() else None, crs, zone)
 
 
+#: Names of the shipped charts :func:`load_chart` accepts instead of a path.
+BUILTIN_CHARTS = ("trondheim", "trondheim-psbmpc", "trondheim-shapefile")
 _KNOWN_EXT = (".csv (psbmpc)", ".shp or a folder of shapefile layers", ".geojson/.json",
-              "or the names 'trondheim', 'trondheim-psbmpc', 'trondheim-shapefile'")
+              "or the names " + ", ".join(f"'{n}'" for n in BUILTIN_CHARTS))
+
+
+def count_vertices(polygons) -> int:
+    """Vertices of all rings of shapely polygons, holes included (closing vertices not counted)."""
+    return int(sum(len(p.exterior.coords) - 1 + sum(len(r.coords) - 1 for r in p.interiors) for p in polygons))
 
 
 def load_chart(path_or_name, origin=None, **kwargs) -> Chart:
     """Load a chart, dispatching on the file extension (see the module docstring), or a shipped chart by name
     (``"trondheim"`` = ``"trondheim-psbmpc"``, ``"trondheim-shapefile"``).  Keyword arguments go to the loader."""
-    if isinstance(path_or_name, str) and path_or_name.lower() in ("trondheim", "trondheim-psbmpc",
-                                                                  "trondheim-shapefile"):
+    if isinstance(path_or_name, str) and path_or_name.lower() in BUILTIN_CHARTS:
         kind = "shapefile" if path_or_name.lower().endswith("shapefile") else "psbmpc"
         return trondheim_chart(kind, origin=origin, **kwargs)
     p = pathlib.Path(path_or_name)

@@ -97,7 +97,4 @@ def build_mpc(preset: str, config_overrides: dict | None = None, param_overrides
     validate_params(params)
     speeds = p.speed_sets if speed_sets is None else speed_sets
     courses = p.course_sets_deg if course_sets_deg is None else course_sets_deg
-    if len(speeds) != len(courses):
-        raise ValueError(f"speed_factors and course_offsets_deg need one set per maneuver, got {len(speeds)} and "
-                         f"{len(courses)}")
-    return config, params, enumerate_behaviours_deg(speeds, courses)
+    return config, params, enumerate_behaviours_deg(speeds, courses)   # raises on mismatched set counts

@@ -26,6 +26,7 @@ import shapely.validation
 import yaml
 from shapely.geometry import LineString, Point, Polygon
 
+from .charts import BUILTIN_CHARTS, count_vertices
 from .params import Params, PlannerConfig
 
 COLAV_MODES = ("none", "psbmpc")
@@ -172,7 +173,6 @@ MULTIPLE_TOL = 1e-9
 #: Quarter-circle segments of the buffer that ``chart.clip_m`` intersects the land with.
 CLIP_QUAD_SEGS = 16
 
-_BUILTIN_CHARTS = ("trondheim", "trondheim-psbmpc", "trondheim-shapefile")
 
 _TOP_KEYS = ("name", "description", "simulation", "monte_carlo", "collision_distance_m", "mpc", "sensor", "chart",
              "own_ship", "targets")
@@ -388,7 +388,7 @@ def _mpc(d, dt: float) -> MPCSpec:
         raise ValueError(f"mpc.preset must be one of {sorted(PRESETS)}, got {preset!r}")
     period = _number(d["update_period_s"], "mpc.update_period_s", gt=0)
     _multiple_of(period, dt, "mpc.update_period_s", "simulation.dt_s")
-    n_ps = d.get("n_ps", getattr(PRESETS[preset], "n_ps", 5))
+    n_ps = d.get("n_ps", PRESETS[preset].n_ps)
     if isinstance(n_ps, bool) or not isinstance(n_ps, numbers.Integral) or n_ps < 1 or n_ps % 2 == 0:
         raise ValueError(f"mpc.n_ps must be an odd integer >= 1, got {n_ps!r}")
 
@@ -517,8 +517,8 @@ def _chart_source(d, base_dir):
             zone = int(zone)
     if src == "builtin":
         name = d["builtin"]
-        if not isinstance(name, str) or name.lower() not in _BUILTIN_CHARTS:
-            raise ValueError(f"chart.builtin must be one of {list(_BUILTIN_CHARTS)}, got {name!r}")
+        if not isinstance(name, str) or name.lower() not in BUILTIN_CHARTS:
+            raise ValueError(f"chart.builtin must be one of {list(BUILTIN_CHARTS)}, got {name!r}")
         try:
             chart = _builtin_chart(name.lower(), origin, zone)
         except ValueError as exc:
@@ -543,11 +543,6 @@ def _chart_source(d, base_dir):
         source = str(p)
     info = dict(source=source, origin=tuple(chart.origin), crs=chart.crs)
     return chart, None, info, rdp_eps, clip
-
-
-def _count_vertices(polys) -> int:
-    """Vertices of all rings (holes included, closing vertices not counted)."""
-    return int(sum(len(p.exterior.coords) - 1 + sum(len(r.coords) - 1 for r in p.interiors) for p in polys))
 
 
 def route_geometry(ship: ShipSpec):
@@ -720,13 +715,13 @@ def scenario_from_dict(data: dict, base_dir=None, source: str | None = None) -> 
 
     # land: loaded -> RDP (builtin / file charts) -> clip about the routes -> ring sets
     polys: list[Polygon] = list(chart.polygons) if chart is not None else list(inline or ())
-    info.update(n_polygons_loaded=len(polys), n_vertices_loaded=_count_vertices(polys))
+    info.update(n_polygons_loaded=len(polys), n_vertices_loaded=count_vertices(polys))
     if chart is not None and rdp_eps is not None:
         from .rdp import simplify_chart
 
         chart = simplify_chart(chart, rdp_eps)
         polys = list(chart.polygons)
-        info.update(n_vertices_rdp=_count_vertices(polys),
+        info.update(n_vertices_rdp=count_vertices(polys),
                     rdp_degenerate_kept=int(chart.report.get("rdp_degenerate_kept", 0)),
                     rdp_holes_dropped=int(chart.report.get("rdp_holes_dropped", 0)))
     if clip is not None:
