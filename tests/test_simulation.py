@@ -101,6 +101,11 @@ def test_stack_arrays_pads_waypoints():
     assert st.own_wx.shape == (2, 1, a3.own_wx.shape[-1])
     np.testing.assert_array_equal(np.asarray(st.own_n)[:, 0], [2, 5])
     np.testing.assert_array_equal(np.asarray(st.own_wx[1]), np.asarray(a3.own_wx))
+    # chart, grid and behaviour table are shared by every solve of an update: not stacked, broadcast by vmap
+    assert st.behaviours.shape == a2.behaviours.shape and st.grid_values.shape == a2.grid_values.shape
+    few = Planner(behaviours=np.zeros((3, 1, 2)))
+    with pytest.raises(ValueError, match="must share behaviours"):
+        stack_arrays([a2, few.prepare(s2)[0]])
 
 
 def test_los_course_follows_route_and_switches():

@@ -29,7 +29,7 @@ import numpy as np
 
 from ..costs.collision import standard_normal_table
 from ..distance_grid import build_distance_grid
-from ..evaluate import evaluate, evaluate_arrays
+from ..evaluate import SituationArrays, evaluate, evaluate_arrays
 from ..params import params_as_arrays
 from ..planner import PlannerState, check_dtype, pack_situation, unpack
 from ..problem import Obstacle, OwnShip, Situation
@@ -80,9 +80,16 @@ class SimulationResult:
 
 
 # ------------------------------------------------------------------------------------------- device calls
+#: Fields every solve of one MPC update shares (one chart, one distance grid, one behaviour table): taken
+#: once and broadcast by vmap instead of stacked per solve (the Nidelva grid alone is ~16 MB)
+_SHARED_FIELDS = ("poly_vertices", "poly_next", "poly_n", "poly_mask", "grid_values", "grid_origin", "grid_spacing",
+                  "grid_margin", "grid_active", "behaviours", "beh_mask")
+_IN_AXES = SituationArrays(**{f: None if f in _SHARED_FIELDS else 0 for f in SituationArrays._fields})
+
+
 @functools.lru_cache(maxsize=8)
 def _batched_evaluate(config):
-    return jax.jit(jax.vmap(functools.partial(evaluate_arrays, config=config), in_axes=(0, None, None)))
+    return jax.jit(jax.vmap(functools.partial(evaluate_arrays, config=config), in_axes=(_IN_AXES, None, None)))
 
 
 @jax.jit
@@ -97,7 +104,15 @@ _WAYPOINT_FIELDS = ("own_wx", "own_wy", "obs_wx", "obs_wy")
 
 def stack_arrays(items):
     """Stack packed situations along a new leading axis, padding waypoint capacities to the largest
-    (padding waypoints beyond the valid count never enter the guidance)."""
+    (padding waypoints beyond the valid count never enter the guidance).
+
+    The ``_SHARED_FIELDS`` (chart, grid, behaviours) are taken from the first item unstacked, to go with
+    ``_IN_AXES``: the items must share them, as all solves of one MPC update do (shapes are checked)."""
+    for f in _SHARED_FIELDS:
+        shapes = {getattr(a, f).shape for a in items}
+        if len(shapes) > 1:
+            raise ValueError(f"stack_arrays: the situations must share {f} (chart, grid and behaviours), got "
+                             f"shapes {sorted(shapes)}")
     w_own = max(a.own_wx.shape[-1] for a in items)
     w_obs = max(a.obs_wx.shape[-1] for a in items)
 
@@ -110,7 +125,9 @@ def stack_arrays(items):
                 rep[name] = jnp.pad(v, [(0, 0)] * (v.ndim - 1) + [(0, w - v.shape[-1])], mode="edge")
         return a._replace(**rep)
 
-    return jax.tree.map(lambda *xs: jnp.stack(xs), *[pad(a) for a in items])
+    padded = [pad(a) for a in items]
+    return SituationArrays(**{f: getattr(items[0], f) if f in _SHARED_FIELDS
+                              else jnp.stack([getattr(a, f) for a in padded]) for f in SituationArrays._fields})
 
 
 def resolve_batch_mode(batch: str) -> str:
