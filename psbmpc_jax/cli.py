@@ -14,7 +14,7 @@ import statistics
 import sys
 import time
 
-from .argtypes import odd_int, positive_int
+from .argtypes import nonneg_int, odd_int, positive_int
 
 
 def enable_compilation_cache() -> None:
@@ -117,7 +117,7 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("scenarios", nargs="*", help="built-in scenario names or patterns (see --list), or YAML paths")
     p.add_argument("--list", action="store_true", help="list the built-in scenarios and exit")
     p.add_argument("--runs", type=positive_int, default=None, help="Monte Carlo runs (default: the file's)")
-    p.add_argument("--seed", type=int, default=None, help="base seed (default: the file's)")
+    p.add_argument("--seed", type=nonneg_int, default=None, help="base seed >= 0 (default: the file's)")
     p.add_argument("--out", default="results", help="output folder; one sub-folder per scenario (default: results)")
     p.add_argument("--batch", choices=("auto", "vmap", "loop"), default="auto",
                    help="device calls per MPC update: one vmapped call for all runs and ships, or one per solve "
@@ -139,8 +139,6 @@ def run_scenarios(args, parser) -> int:
         return 0
     if not args.scenarios:
         parser.error("give at least one scenario (built-in name, pattern or YAML path); --list shows the names")
-    if args.seed is not None and args.seed < 0:
-        parser.error(f"--seed must be >= 0, got {args.seed}")
     selected = []
     for item in args.scenarios:
         if item.endswith((".yaml", ".yml")) or "/" in item:
@@ -154,12 +152,14 @@ def run_scenarios(args, parser) -> int:
     from .sim import simulate
     from .sim.output import write_index, write_outputs
 
-    failures = 0
-    for item in selected:
+    scenarios = []
+    for item in selected:   # every file is checked before the first simulation starts
         try:
-            scenario = load_scenario(item)
+            scenarios.append(load_scenario(item))
         except (ValueError, OSError) as exc:
             parser.error(str(exc))
+    failures = 0
+    for scenario in scenarios:
         t0 = time.perf_counter()
         result = simulate(scenario, runs=args.runs, seed=args.seed, batch=args.batch, progress=not args.quiet)
         out = pathlib.Path(args.out) / scenario.name

@@ -196,6 +196,16 @@ def test_cli_run_bad_arguments(tmp_path, capsys):
         main(["run"])
     assert main(["run", "--list"]) == 0
     assert "imazu_22" in capsys.readouterr().out
+    with pytest.raises(SystemExit) as exc:
+        main(["run", "head_on", "--seed", "-1", "--out", str(tmp_path)])
+    assert exc.value.code == 2 and "--seed" in capsys.readouterr().err
+    # a bad file after a good scenario stops the command before anything is simulated
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("name: bad\nsimulation: {dt_s: 0.5}\n")
+    with pytest.raises(SystemExit) as exc:
+        main(["run", "head_on", str(bad), "--out", str(tmp_path / "out"), "--quiet"])
+    assert exc.value.code == 2 and "bad.yaml" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
 
 
 def test_simulate_rejects_bad_arguments():

@@ -78,10 +78,6 @@ ENCOUNTER_TYPES = ("head-on", "crossing-give-way", "crossing-stand-on", "overtak
 
 
 # -------------------------------------------------------------------------------------------------- helpers
-def _wrap_deg(a):
-    return np.asarray(a) - 360.0 * np.floor((np.asarray(a) + 180.0) / 360.0)
-
-
 def _json_float(v):
     """float, or None for NaN/inf/None."""
     if v is None:

@@ -31,15 +31,14 @@ from ..costs.collision import standard_normal_table
 from ..distance_grid import build_distance_grid
 from ..evaluate import SituationArrays, evaluate, evaluate_arrays
 from ..params import params_as_arrays
-from ..planner import PlannerState, check_dtype, pack_situation, unpack
+from ..planner import COST_TERMS, PlannerState, check_dtype, pack_situation, unpack
 from ..problem import Obstacle, OwnShip, Situation
-from ..scenario import Scenario, _multiple_of
+from ..scenario import Scenario, _integer, _multiple_of
 from . import metrics as metrics_mod
 from .tracker import TrackerBank
 from .vessel import extend_route, kinematic_step, los_course, nominal_speed, pad_routes
 
 BATCH_MODES = ("auto", "vmap", "loop")
-COST_NAMES = ("total", "do", "colregs", "so", "path")
 
 
 @dataclass
@@ -95,7 +94,7 @@ def _batched_evaluate(config):
 @jax.jit
 def _pick(ev):
     """Best index and its five cost terms (works batched: leading axes are kept)."""
-    costs = jnp.stack([ev.total, ev.do, ev.colregs, ev.so, ev.path], axis=-1)          # [..., B, 5]
+    costs = jnp.stack([getattr(ev, term) for term in COST_TERMS], axis=-1)              # [..., B, 5]
     return ev.best, jnp.take_along_axis(costs, ev.best[..., None, None], axis=-2)[..., 0, :]
 
 
@@ -178,12 +177,6 @@ class _Progress:
 
 
 # ------------------------------------------------------------------------------------------- simulation
-def _check_count(value, name: str, minimum: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < minimum:
-        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
-    return int(value)
-
-
 class _Solver:
     """Device side of one MPC update: evaluate packed situations (one vmapped call or one call each) and return
     the chosen behaviour indices, their cost terms and, on request, one situation's full evaluation."""
@@ -384,8 +377,8 @@ def simulate(scenario: Scenario, *, runs: int | None = None, seed: int | None = 
     """
     if not isinstance(scenario, Scenario):
         raise ValueError(f"scenario must be a psbmpc_jax.scenario.Scenario, got {type(scenario).__name__}")
-    runs = _check_count(scenario.runs if runs is None else runs, "runs", 1)
-    seed = _check_count(scenario.seed if seed is None else seed, "seed", 0)
+    runs = _integer(scenario.runs if runs is None else runs, "runs", ge=1)
+    seed = _integer(scenario.seed if seed is None else seed, "seed", ge=0)
     if not 0 <= snapshot_run < runs:
         raise ValueError(f"snapshot_run must be in [0, {runs}), got {snapshot_run}")
     mode = resolve_batch_mode(batch)

@@ -37,13 +37,6 @@ def pad_routes(routes) -> tuple[np.ndarray, np.ndarray]:
     return out, np.array([len(r) for r in routes], dtype=np.int64)
 
 
-class LOSState:
-    """Guidance memory: the active segment index ``seg [..., n_ships]`` (segment z runs from waypoint z to z+1)."""
-
-    def __init__(self, batch_shape: tuple[int, ...]):
-        self.seg = np.zeros(batch_shape, dtype=np.int64)
-
-
 def los_course(pos: np.ndarray, seg: np.ndarray, routes: np.ndarray, n_wp: np.ndarray, lookahead, R_a):
     """Advance the active segments and return the LOS course ``[..., n_ships]`` (and the new segments).
 
