@@ -26,7 +26,7 @@ import numpy as np
 import shapely
 
 from ..reference import wrap_angle
-from .checks import positive_scalar
+from ..problem import _positive, _waypoints
 
 __all__ = [
     "HEAD_ON_SECTOR_DEG",
@@ -114,15 +114,6 @@ def _check_traj(a, name: str, K: int) -> np.ndarray:
     return a
 
 
-def _check_route(route) -> np.ndarray:
-    route = _array(route, "route", "[m, 2] with m >= 2 waypoints (north, east)", 2, 2)
-    if route.shape[0] < 2:
-        raise ValueError(f"route must have at least 2 waypoints, got {route.shape[0]}")
-    if np.any(np.hypot(*np.diff(route, axis=0).T) == 0):
-        raise ValueError("route must not repeat a waypoint (zero-length leg)")
-    return route
-
-
 def _check_state(s, name: str) -> np.ndarray:
     return _array(s, name, "[4] = (north, east, chi, U)", 1, 4)
 
@@ -196,7 +187,7 @@ def encounter_type(t, own, target, range_m):
     own = _check_traj(own, "own", t.size)
     target = _check_traj(target, "target", t.size)
     if range_m is not None:
-        range_m = positive_scalar(range_m, "range_m")
+        range_m = _positive(range_m, "range_m")
     k = _classification_index(_ranges(own, target), range_m)
     if k is None:
         return "none", float("nan")
@@ -217,7 +208,7 @@ def _segment_distances(points: np.ndarray, route: np.ndarray) -> np.ndarray:
 def cross_track_deviation(points, route):
     """Distance [m] from each point ``[K, 2]`` (north, east) to the route polyline ``[m, 2]``: ``[K]``."""
     points = _array(points, "points", "[K, 2] (north, east)", 2, 2)
-    route = _check_route(route)
+    route = _waypoints(route, "route", 2)
     if points.shape[0] == 0:
         return np.zeros(0)
     return _segment_distances(points, route).min(axis=1)
@@ -269,7 +260,7 @@ def maneuver_compliance(t, own, target, encounter, route, *, d_collision=None):
     t = _check_t(t)
     own = _check_traj(own, "own", t.size)
     target = _check_traj(target, "target", t.size)
-    route = _check_route(route)
+    route = _waypoints(route, "route", 2)
     if isinstance(encounter, (tuple, list)):
         if len(encounter) != 2:
             raise ValueError(f"encounter must be a type string or a (type, t_classified) pair, got {encounter!r}")
@@ -280,7 +271,7 @@ def maneuver_compliance(t, own, target, encounter, route, *, d_collision=None):
     if enc not in allowed:
         raise ValueError(f"encounter type must be one of {allowed}, got {enc!r}")
     if d_collision is not None:
-        d_collision = positive_scalar(d_collision, "d_collision")
+        d_collision = _positive(d_collision, "d_collision")
     empty = {"compliant": None, "encounter": enc, "t_classified": None, "t_cpa": None, "passing_side": None,
              "passed_astern": None, "max_starboard_deviation_deg": None, "max_port_deviation_deg": None,
              "min_speed_ratio": None, "min_distance_m": None, "first_alteration": None}
@@ -461,11 +452,11 @@ def run_metrics(t, own, targets, route, polygons, *, d_collision, ground_clearan
         raise ValueError(f"targets must have shape [n, K={K}, 4] with rows (north, east, chi, U), got {tg.shape}")
     if not np.all(np.isfinite(tg)):
         raise ValueError("targets must be finite (no NaN/inf)")
-    route = _check_route(route)
-    d_collision = positive_scalar(d_collision, "d_collision")
-    ground_clearance = positive_scalar(ground_clearance, "ground_clearance", allow_zero=True)
+    route = _waypoints(route, "route", 2)
+    d_collision = _positive(d_collision, "d_collision")
+    ground_clearance = _positive(ground_clearance, "ground_clearance", allow_zero=True)
     if classify_range is not None:
-        classify_range = positive_scalar(classify_range, "classify_range")
+        classify_range = _positive(classify_range, "classify_range")
     n = tg.shape[0]
     if target_names is None:
         names = [f"target_{i}" for i in range(n)]
