@@ -30,24 +30,25 @@ def stats(times_s):
             "q1_ms": ms(q[0]), "q3_ms": ms(q[2]), "n": len(times_s)}
 
 
-def time_compiled(arrays, params, samples, config, repeats: int, warmup: int = 1):
-    """Compile ``evaluate`` for these inputs (timed separately), run ``warmup`` untimed calls, then
-    ``repeats`` timed calls with ``block_until_ready``.  Returns (compile_s, times_s, last Evaluation)."""
+def time_compiled(prepared, config, repeats: int, warmup: int = 1):
+    """Compile the solve step for ``prepared = (inputs, state, params, samples)`` (from ``Planner.prepare``;
+    timed separately), run ``warmup`` untimed calls, then ``repeats`` timed calls with ``block_until_ready``.
+    Returns (compile_s, times_s, last Evaluation)."""
     import time
 
-    from psbmpc_jax.evaluate import evaluate
+    from psbmpc_jax.solve import solve
 
     t0 = time.perf_counter()
-    compiled = evaluate.lower(arrays, params, samples, config=config).compile()
+    compiled = solve.lower(*prepared, config=config).compile()
     compile_s = time.perf_counter() - t0
     for _ in range(warmup):
-        jax.block_until_ready(compiled(arrays, params, samples))
-    times, ev = [], None
+        jax.block_until_ready(compiled(*prepared))
+    times, out = [], None
     for _ in range(repeats):
         t0 = time.perf_counter()
-        ev = jax.block_until_ready(compiled(arrays, params, samples))
+        out = jax.block_until_ready(compiled(*prepared))
         times.append(time.perf_counter() - t0)
-    return compile_s, times, ev
+    return compile_s, times, out[2]
 
 
 def environment_meta(benchmark: str, **extra) -> dict:

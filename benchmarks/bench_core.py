@@ -37,9 +37,9 @@ def bench_point(estimator: str, dtype: str, repeats: int, ref_repeats: int, seed
     config = PlannerConfig(estimator=estimator, dtype=dtype)
     planner = Planner(config, behaviours=behaviours)
     key = jax.random.key(seed)
-    arrays, params, samples = planner.prepare(situation, key=key)
+    prepared = planner.prepare(situation, key=key)
 
-    compile_s, times, ev = time_compiled(arrays, params, samples, config, repeats, warmup=3)
+    compile_s, times, ev = time_compiled(prepared, config, repeats, warmup=3)
     best = int(ev.best)
 
     ref_samples = None if samples is None else np.asarray(samples, dtype=np.float64)

@@ -5,21 +5,27 @@ Public API::
     from psbmpc_jax import Planner, PlannerConfig, Params, OwnShip, Obstacle, Situation
     planner = Planner(PlannerConfig(estimator="quadrature"))
     result, state = planner.plan(situation)
+    total, costs = objective(controls, inputs, params, None, config)    # differentiable, one control input
 
 See the README for the parameter table and ``docs/algorithm.md`` for the exact cost.
 """
 
 from .behaviours import enumerate_behaviours, enumerate_behaviours_deg, paper_behaviours
-from .evaluate import Evaluation, SituationArrays, evaluate
+from .costs.base import cost_term
+from .evaluate import DEFAULT_TERMS, Evaluation, evaluate
+from .objective import objective
+from .packing import Capacities, PlanResult, SolveInputs, pack
 from .params import Params, PlannerConfig
-from .planner import Planner, PlannerState, PlanResult, pack_situation
+from .planner import Planner
 from .problem import Obstacle, OwnShip, Situation
-from .sharding import evaluate_sharded
+from .sharding import solve_sharded
+from .solve import Plan, PlannerState, solve
 
 __version__ = "0.1.0"
 
 __all__ = [
     "Planner", "PlannerConfig", "PlannerState", "PlanResult", "Params", "OwnShip", "Obstacle", "Situation",
     "enumerate_behaviours", "enumerate_behaviours_deg", "paper_behaviours", "evaluate", "Evaluation",
-    "SituationArrays", "pack_situation", "evaluate_sharded", "__version__",
+    "SolveInputs", "Capacities", "pack", "solve", "Plan", "solve_sharded", "objective", "cost_term",
+    "DEFAULT_TERMS", "__version__",
 ]

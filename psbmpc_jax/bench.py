@@ -442,9 +442,9 @@ class Runner:
         """Compile and warm up one point; returns its timing slot (the call, the record so far, no times)."""
         import jax
 
-        from .evaluate import evaluate
         from .params import Params
         from .planner import Planner
+        from .solve import solve
 
         dev = devices[0]
         # a point whose padded shapes match an earlier point's (fig6s after fig6, polygon counts padded to
@@ -453,19 +453,19 @@ class Runner:
         rss0 = peak_rss_bytes()
         with jax.default_device(dev):
             planner = Planner(config, params=Params(r_ct=p.r_ct), behaviours=behaviours)
-            arrays, params, samples = planner.prepare(situation, key=jax.random.key(self.args.seed))
+            inputs, state, params, samples = planner.prepare(situation, key=jax.random.key(self.args.seed))
         if multi:   # ahead-of-time too: the timed call neither re-places the inputs nor looks up a cache
             from .sharding import sharded_call
 
-            fn, args, n_b = sharded_call(arrays, params, samples, config, devices=devices)
+            fn, args, n_b = sharded_call(inputs, state, params, samples, config, devices=devices)
             t0 = time.perf_counter()
             compiled = fn.lower(*args, n_b=n_b).compile()
         else:
-            args = jax.device_put((arrays, params, samples), dev)
+            args = jax.device_put((inputs, state, params, samples), dev)
             t0 = time.perf_counter()
-            compiled = evaluate.lower(*args, config=config).compile()
+            compiled = solve.lower(*args, config=config).compile()
         compile_s = time.perf_counter() - t0
-        call = lambda: compiled(*args)  # noqa: E731
+        call = lambda: compiled(*args)[2]  # noqa: E731  (plan, next state, evaluation): one executable
         planned = compiled_memory_bytes(compiled)
         ev = None
         for _ in range(self.args.warmup):

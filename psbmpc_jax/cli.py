@@ -100,12 +100,11 @@ def run_example(args) -> int:
         f"M{m + 1}: u={u:g}, chi={np.rad2deg(c):+g} deg" for m, (u, c) in enumerate(result.offsets)))
     print(f"apply now: U_c = {result.u_opt:g} * U_d, chi_c = chi_d {np.rad2deg(result.chi_opt):+g} deg")
     print(f"\nbest {args.top} behaviours (costs):")
-    print(f"{'rank':>4} {'index':>5}  {'maneuvers (u, chi deg)':<30} {'total':>9} {'H_do':>9} {'H_colregs':>9} "
-          f"{'H_so':>9} {'H_p':>9}")
+    names = planner.cost_names                     # columns derived from the planner's cost terms
+    print(f"{'rank':>4} {'index':>5}  {'maneuvers (u, chi deg)':<30} " + " ".join(f"{n:>9}" for n in names))
     for rank, row in enumerate(result.ranking(args.top), 1):
         man = " ".join(f"({u:g},{c:+.0f})" for u, c in row["maneuvers"])
-        print(f"{rank:>4} {row['index']:>5}  {man:<30} {row['total']:9.4f} {row['do']:9.4f} "
-              f"{row['colregs']:9.4f} {row['so']:9.4f} {row['path']:9.4f}")
+        print(f"{rank:>4} {row['index']:>5}  {man:<30} " + " ".join(f"{row[n]:9.4f}" for n in names))
     q = statistics.quantiles(times, n=4) if len(times) > 1 else [times[0]] * 3
     print(f"\nsolve time: first call {first * 1e3:.0f} ms (includes compile), steady state over "
           f"{len(times)} solves: median {statistics.median(times) * 1e3:.1f} ms, min {min(times) * 1e3:.1f} ms, "

@@ -19,7 +19,7 @@ Frame: NED (x north, y east) [m], course from north, clockwise positive [rad].
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numpy as np
@@ -689,11 +689,12 @@ class ReferenceResult:
     C: list                # per obstacle i: (B, n_ps_i) collision cost C_s^{l,i}
     mu: list               # per obstacle i: (B, n_ps_i) COLREGS indicator (0.0/1.0)
     so_j: np.ndarray       # (B, n_so) per-polygon grounding cost H_so^{l,j}
+    extra: dict = field(default_factory=dict)   # name -> (B,) costs of extra terms
 
 
 def evaluate_reference(situation: Situation, behaviours, params: Params = Params(),
                        config: PlannerConfig = PlannerConfig(), last_offsets=(1.0, 0.0),
-                       samples=None) -> ReferenceResult:
+                       samples=None, extra_terms=()) -> ReferenceResult:
     """Evaluate the PSB-MPC cost of every behaviour sequentially in float64 (Algorithm 2).
 
     Args:
@@ -703,6 +704,9 @@ def evaluate_reference(situation: Situation, behaviours, params: Params = Params
         last_offsets: previously applied (speed factor, course offset), planner state.
         samples: standard normal table, ``(n_samples, 2)`` for ``mc``, ``(ce_max_iter + 1, n_samples, 2)``
             for ``ce``; ignored for ``quadrature``.
+        extra_terms: cost terms beyond the paper's four (:func:`psbmpc_jax.costs.base.cost_term` instances),
+            each evaluated through its ``reference(own_traj [N+1, 4], behaviour [n_M, 2], situation, params,
+            config)`` method; their costs are in ``ReferenceResult.extra`` and added to the total.
     """
     if not isinstance(situation, Situation):
         raise ValueError(f"situation must be a psbmpc_jax.Situation, got {type(situation).__name__}")
@@ -764,7 +768,14 @@ def evaluate_reference(situation: Situation, behaviours, params: Params = Params
         H_col[l] = kappa * h_col
 
     total = H_do + H_col + H_so + H_p
+    extra = {}
+    for term in extra_terms:
+        ref = getattr(term, "reference", None)
+        if not callable(ref):
+            raise ValueError(f"cost term {term.name!r} has no reference(...) counterpart")
+        extra[term.name] = np.array([float(ref(own_traj[l], beh[l], situation, params, config)) for l in range(n_b)])
+        total = total + extra[term.name]
     return ReferenceResult(
         total=total, do=H_do, colregs=H_col, so=H_so, path=H_p, best=int(np.argmin(total)),
-        own_traj=own_traj, obs_traj=obs_traj, obs_cov=obs_cov, C=C, mu=mu, so_j=so_j,
+        own_traj=own_traj, obs_traj=obs_traj, obs_cov=obs_cov, C=C, mu=mu, so_j=so_j, extra=extra,
     )

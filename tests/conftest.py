@@ -17,7 +17,8 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 from psbmpc_jax.behaviours import enumerate_behaviours_deg  # noqa: E402
-from psbmpc_jax.evaluate import SituationArrays  # noqa: E402
+from psbmpc_jax.packing import (BehaviourArrays, ChartArrays, ObstacleArrays, OwnShipArrays,  # noqa: E402
+                                SolveInputs, WorldArrays)
 from psbmpc_jax.problem import Obstacle, OwnShip, Situation  # noqa: E402
 
 
@@ -140,22 +141,25 @@ def make_situation():
 CAPS = dict(O=4, S=5, W=4, Wo=4, P=2, V=16, B=64)
 
 
-def pad_arrays(sit: SituationArrays, *, O=None, S=None, W=None, Wo=None, P=None, V=None, B=None,
-               junk: bool = True) -> SituationArrays:
-    """Pad packed arrays to (possibly) larger capacities.
+def pad_arrays(inputs: SolveInputs, *, O=None, S=None, W=None, Wo=None, P=None, V=None, B=None,
+               junk: bool = True) -> SolveInputs:
+    """Pad packed inputs to (possibly) larger capacities.
 
-    With ``junk=True`` every padding slot -- the new ones and those ``pack_situation`` already made -- is
+    With ``junk=True`` every padding slot -- the new ones and those ``pack`` already made -- is
     deliberately hostile, while staying within the documented contract (masks False, scenario
     probabilities 0 outside the real scenarios): masked obstacles sit on the own-ship with a tiny covariance,
     all their scenario slots "valid" by ``n_ps`` and non-zero weight/zeta; masked polygons are a big box
     around the own-ship; masked behaviours are straight ahead at full speed (the cheapest possible path
     cost); waypoint and vertex slots beyond the valid counts hold far-away garbage.  A correct evaluator
     ignores all of it."""
-    a = {k: np.array(v) for k, v in sit._asdict().items()}
-    o0, s0 = a["obs_probs"].shape
-    w0, wo0 = a["own_wx"].shape[1], a["obs_wx"].shape[1]
-    p0, v0 = a["poly_vertices"].shape[:2]
-    b0 = a["behaviours"].shape[0]
+    own = {k: np.array(v) for k, v in inputs.own._asdict().items()}
+    obs = {k: np.array(v) for k, v in inputs.obstacles._asdict().items()}
+    poly = {k: np.array(v) for k, v in inputs.world.polygons._asdict().items()}
+    beh = {k: np.array(v) for k, v in inputs.behaviours._asdict().items()}
+    o0, s0 = obs["probs"].shape
+    w0, wo0 = own["wx"].shape[1], obs["wx"].shape[1]
+    p0, v0 = poly["vertices"].shape[:2]
+    b0 = beh["offsets"].shape[0]
     O, S, W, Wo = O or o0, S or s0, W or w0, Wo or wo0
     P = p0 if P is None else P
     V, B = V or v0, B or b0
@@ -167,21 +171,21 @@ def pad_arrays(sit: SituationArrays, *, O=None, S=None, W=None, Wo=None, P=None,
         return out
 
     g = 12345.0
-    own_wx, own_wy = grow(a["own_wx"], (1, W), 0.0), grow(a["own_wy"], (1, W), 0.0)
-    obs_state, obs_cov = grow(a["obs_state"], (O, 4), 0.0), grow(a["obs_cov"], (O, 4, 4), 0.0)
-    obs_length = grow(a["obs_length"], (O,), 5.0)
-    obs_wx, obs_wy = grow(a["obs_wx"], (O, Wo), 0.0), grow(a["obs_wy"], (O, Wo), 0.0)
-    obs_n, obs_n_ps = grow(a["obs_n"], (O,), 2), grow(a["obs_n_ps"], (O,), 1)
-    obs_probs = grow(a["obs_probs"], (O, S), 0.0)
-    obs_weight, obs_zeta = grow(a["obs_weight"], (O,), 0.0), grow(a["obs_zeta"], (O,), 0.0)
-    obs_mask = grow(a["obs_mask"], (O,), False)
-    poly_vertices = grow(a["poly_vertices"], (P, V, 2), 0.0)
-    poly_n, poly_mask = grow(a["poly_n"], (P,), 3), grow(a["poly_mask"], (P,), False)
-    poly_next = grow(a["poly_next"], (P, V), 0)
+    own_wx, own_wy = grow(own["wx"], (1, W), 0.0), grow(own["wy"], (1, W), 0.0)
+    obs_state, obs_cov = grow(obs["state"], (O, 4), 0.0), grow(obs["cov"], (O, 4, 4), 0.0)
+    obs_length = grow(obs["length"], (O,), 5.0)
+    obs_wx, obs_wy = grow(obs["wx"], (O, Wo), 0.0), grow(obs["wy"], (O, Wo), 0.0)
+    obs_n, obs_n_ps = grow(obs["n"], (O,), 2), grow(obs["n_ps"], (O,), 1)
+    obs_probs = grow(obs["probs"], (O, S), 0.0)
+    obs_weight, obs_zeta = grow(obs["weight"], (O,), 0.0), grow(obs["zeta"], (O,), 0.0)
+    obs_mask = grow(obs["mask"], (O,), False)
+    poly_vertices = grow(poly["vertices"], (P, V, 2), 0.0)
+    poly_n, poly_mask = grow(poly["n"], (P,), 3), grow(poly["mask"], (P,), False)
+    poly_next = grow(poly["next"], (P, V), 0)
     poly_next[p0:, :3] = [1, 2, 0]
-    behaviours = grow(a["behaviours"], (B,) + a["behaviours"].shape[1:], 0.0)
-    beh_mask = grow(a["beh_mask"], (B,), False)
-    for i in range(o0, O):  # neutral padding like pack_situation's (a valid 2-point route)
+    behaviours = grow(beh["offsets"], (B,) + beh["offsets"].shape[1:], 0.0)
+    beh_mask = grow(beh["mask"], (B,), False)
+    for i in range(o0, O):  # neutral padding like pack's (a valid 2-point route)
         obs_cov[i] = np.eye(4)
         obs_wx[i, 1] = 1.0
     for j in range(p0, P):
@@ -189,8 +193,8 @@ def pad_arrays(sit: SituationArrays, *, O=None, S=None, W=None, Wo=None, P=None,
     behaviours[b0:] = behaviours[0]
 
     if junk:
-        ox, oy = a["own_state"][:2]
-        own_wx[0, int(a["own_n"][0]):], own_wy[0, int(a["own_n"][0]):] = g, -g
+        ox, oy = own["state"][:2]
+        own_wx[0, int(own["n"][0]):], own_wy[0, int(own["n"][0]):] = g, -g
         for i in range(O):
             if not obs_mask[i]:
                 obs_state[i] = [ox + 1.0, oy, -1.0, 0.0]
@@ -206,18 +210,16 @@ def pad_arrays(sit: SituationArrays, *, O=None, S=None, W=None, Wo=None, P=None,
             poly_vertices[j, poly_n[j]:] = g
         behaviours[~beh_mask] = np.array([1.0, 0.0])
 
-    f = lambda x: jnp.asarray(x, a["own_state"].dtype)
+    dtype = own["state"].dtype
+    f = lambda x: jnp.asarray(x, dtype)
     i32 = lambda x: jnp.asarray(x, jnp.int32)
-    return SituationArrays(
-        own_state=f(a["own_state"]), own_wx=f(own_wx), own_wy=f(own_wy), own_n=i32(a["own_n"]),
-        U_d=f(a["U_d"]), own_length=f(a["own_length"]), obs_state=f(obs_state), obs_cov=f(obs_cov),
-        obs_length=f(obs_length), obs_wx=f(obs_wx), obs_wy=f(obs_wy), obs_n=i32(obs_n), obs_n_ps=i32(obs_n_ps),
-        obs_probs=f(obs_probs), obs_weight=f(obs_weight), obs_zeta=f(obs_zeta), obs_mask=jnp.asarray(obs_mask),
-        poly_vertices=f(poly_vertices), poly_next=i32(poly_next), poly_n=i32(poly_n),
-        poly_mask=jnp.asarray(poly_mask),
-        grid_values=sit.grid_values, grid_origin=sit.grid_origin, grid_spacing=sit.grid_spacing,
-        grid_margin=sit.grid_margin, grid_active=sit.grid_active,
-        behaviours=f(behaviours), beh_mask=jnp.asarray(beh_mask), last_offsets=f(a["last_offsets"]),
+    return SolveInputs(
+        own=OwnShipArrays(f(own["state"]), f(own_wx), f(own_wy), i32(own["n"]), f(own["U_d"]), f(own["length"])),
+        obstacles=ObstacleArrays(f(obs_state), f(obs_cov), f(obs_length), f(obs_wx), f(obs_wy), i32(obs_n),
+                                 i32(obs_n_ps), f(obs_probs), f(obs_weight), f(obs_zeta), jnp.asarray(obs_mask)),
+        world=WorldArrays(ChartArrays(f(poly_vertices), i32(poly_next), i32(poly_n), jnp.asarray(poly_mask)),
+                          inputs.world.grid),
+        behaviours=BehaviourArrays(f(behaviours), jnp.asarray(beh_mask)),
     )
 
 
@@ -227,10 +229,10 @@ def fixed_caps(monkeypatch):
     so that all random situations share one compiled evaluator per config."""
     import psbmpc_jax.planner as planner_mod
 
-    original = planner_mod.pack_situation
+    original = planner_mod.pack
 
-    def pack_fixed(situation, behaviours, state, config, grid=None):
-        return pad_arrays(original(situation, behaviours, state, config, grid), **CAPS)
+    def pack_fixed(situation, behaviours, config, *, capacities=None, grid=None):
+        return pad_arrays(original(situation, behaviours, config, capacities=capacities, grid=grid), **CAPS)
 
-    monkeypatch.setattr(planner_mod, "pack_situation", pack_fixed)
+    monkeypatch.setattr(planner_mod, "pack", pack_fixed)
     return CAPS

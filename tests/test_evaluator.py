@@ -34,15 +34,17 @@ from psbmpc_jax import (
     enumerate_behaviours,
     enumerate_behaviours_deg,
     evaluate,
-    pack_situation,
+    pack,
     paper_behaviours,
 )
 from psbmpc_jax import reference as ref_mod
 from psbmpc_jax.costs import collision as col
-from psbmpc_jax.evaluate import Evaluation, SituationArrays, evaluate_arrays
+from psbmpc_jax.evaluate import Evaluation, evaluate_arrays
+from psbmpc_jax.packing import SolveInputs
+from psbmpc_jax.solve import solve
 from psbmpc_jax.examples import paper_head_on
 from psbmpc_jax.obstacles import obstacle_covariances, ou_covariance
-from psbmpc_jax.planner import bucket, bucket_behaviours, bucket_scenarios, unpack
+from psbmpc_jax.packing import bucket, bucket_behaviours, bucket_scenarios, unpack
 
 from conftest import CAPS, SMALL_BEHAVIOURS, pad_arrays, random_situation
 
@@ -155,14 +157,14 @@ def test_evaluator_matches_reference_natural_buckets_and_obstacle_covariances():
         np.testing.assert_allclose(res.collision_cost[i], ref.C[i], rtol=RTOL, atol=ATOL)
         np.testing.assert_array_equal(res.colregs_indicator[i], ref.mu[i])
         assert_traj_close(res.obstacle_trajectories[i], ref.obs_traj[i])
-    arrays, p, samples = planner.prepare(sit)
-    assert arrays.obs_probs.shape == (4, 16)
-    ev = evaluate(arrays, p, samples, config=planner.config)
+    arrays, state, p, samples = planner.prepare(sit)
+    assert arrays.obstacles.probs.shape == (4, 16)
+    ev = evaluate(arrays, state.last_offsets, p, samples, config=planner.config)
     for i in range(len(sit.obstacles)):
         np.testing.assert_allclose(np.asarray(ev.obs_cov[i]), ref.obs_cov[i], rtol=1e-12, atol=1e-14)
     # padded behaviours cost +inf and are never chosen
     assert np.all(np.isinf(np.asarray(ev.total)[len(SMALL_BEHAVIOURS):]))
-    np.testing.assert_array_equal(np.asarray(ev.best_offsets), np.asarray(arrays.behaviours)[int(ev.best)])
+    np.testing.assert_array_equal(np.asarray(ev.best_offsets), np.asarray(arrays.behaviours.offsets)[int(ev.best)])
 
 
 NONDEFAULT = Params(
@@ -231,11 +233,13 @@ def test_empty_situation_costs_only_the_path(fixed_caps):
 @pytest.mark.parametrize("seed", SEEDS)
 def test_float32_picks_the_float64_argmin(fixed_caps, seed):
     planner = Planner(PlannerConfig(dtype="float32", **BASE), behaviours=SMALL_BEHAVIOURS)
-    arrays, p, samples = planner.prepare(random_situation(seed))
-    ev = evaluate(arrays, p, samples, config=planner.config)
+    arrays, state, p, samples = planner.prepare(random_situation(seed))
+    ev = evaluate(arrays, state.last_offsets, p, samples, config=planner.config)
     # no silent promotion to float64 even though x64 is enabled for the session
-    for name in ("total", "do", "colregs", "so", "path", "C", "mu", "so_j", "obs_cov", "best_offsets"):
+    for name in ("total", "C", "mu", "so_j", "obs_cov", "best_offsets"):
         assert getattr(ev, name).dtype == jnp.float32, name
+    for name in ("do", "colregs", "so", "path"):
+        assert ev.costs[name].dtype == jnp.float32, name
     assert ev.own.x.dtype == jnp.float32 and ev.obstacles.x.dtype == jnp.float32
     res, _ = planner.plan(random_situation(seed))
     # the returned offsets are exactly the (float64) table row
@@ -366,13 +370,14 @@ def test_vmap_over_situations_equals_loop(fixed_caps):
     sits.append(random_situation(2))  # a different situation padded to the same shapes
     key = key_for(0)
     packed = [planner.prepare(s, key=key) for s in sits]
-    p, samples = packed[0][1], packed[0][2]
-    batch = jax.tree.map(lambda *xs: jnp.stack(xs), *[a for a, _, _ in packed])
-    batched = jax.jit(jax.vmap(partial(evaluate_arrays, config=cfg), in_axes=(0, None, None)))(batch, p, samples)
-    batched_jit = jax.vmap(partial(evaluate, config=cfg), in_axes=(0, None, None))(batch, p, samples)
+    last, p, samples = jnp.asarray([1.0, 0.0]), packed[0][2], packed[0][3]
+    batch = jax.tree.map(lambda *xs: jnp.stack(xs), *[a for a, _, _, _ in packed])
+    batched = jax.jit(jax.vmap(partial(evaluate_arrays, config=cfg), in_axes=(0, None, None, None)))(
+        batch, last, p, samples)
+    batched_jit = jax.vmap(partial(evaluate, config=cfg), in_axes=(0, None, None, None))(batch, last, p, samples)
     totals = []
-    for b, (arrays, _, _) in enumerate(packed):
-        single = evaluate(arrays, p, samples, config=cfg)
+    for b, (arrays, _, _, _) in enumerate(packed):
+        single = evaluate(arrays, last, p, samples, config=cfg)
         for out in (batched, batched_jit):
             for got, want in zip(jax.tree.leaves(out), jax.tree.leaves(single), strict=True):
                 np.testing.assert_allclose(np.asarray(got)[b], np.asarray(want), rtol=1e-12, atol=1e-12)
@@ -384,18 +389,19 @@ def test_vmap_over_situations_equals_loop(fixed_caps):
 def test_vmap_over_params_equals_loop(fixed_caps):
     cfg = cfg64("quadrature")
     planner = Planner(cfg, behaviours=SMALL_BEHAVIOURS)
-    arrays, p, samples = planner.prepare(random_situation(0))
+    arrays, state, p, samples = planner.prepare(random_situation(0))
+    last = state.last_offsets
     k_coll = np.array([5.0, 25.0, 80.0])
     p_batch = replace(p, K_coll=jnp.asarray(k_coll))
     axes = jax.tree.map(lambda _: None, p)
     axes = replace(axes, K_coll=0)
-    out = jax.vmap(lambda pp: evaluate(arrays, pp, samples, config=cfg), in_axes=(axes,))(p_batch)
+    out = jax.vmap(lambda pp: evaluate(arrays, last, pp, samples, config=cfg), in_axes=(axes,))(p_batch)
     for b, kc in enumerate(k_coll):
-        single = evaluate(arrays, replace(p, K_coll=np.asarray(kc)), samples, config=cfg)
+        single = evaluate(arrays, last, replace(p, K_coll=np.asarray(kc)), samples, config=cfg)
         np.testing.assert_allclose(np.asarray(out.total)[b], np.asarray(single.total), rtol=1e-12, atol=1e-12)
         assert int(out.best[b]) == int(single.best)
     # H_do is linear in K_coll
-    np.testing.assert_allclose(np.asarray(out.do)[2], np.asarray(out.do)[0] * 16.0, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(np.asarray(out.costs["do"])[2], np.asarray(out.costs["do"])[0] * 16.0, rtol=1e-12, atol=1e-12)
 
 
 # ============================================================================ padding / permutation invariance
@@ -404,13 +410,14 @@ def test_padding_invariance():
     sit = random_situation(seed)
     cfg = cfg64("quadrature")
     planner = Planner(cfg, behaviours=SMALL_BEHAVIOURS)
-    arrays, p, samples = planner.prepare(sit)
-    natural = unpack(evaluate(arrays, p, samples, config=cfg), sit, SMALL_BEHAVIOURS, 0.0)
+    arrays, state, p, samples = planner.prepare(sit)
+    last = state.last_offsets
+    natural = unpack(evaluate(arrays, last, p, samples, config=cfg), sit, SMALL_BEHAVIOURS, 0.0)
     big = pad_arrays(arrays, O=8, S=7, W=8, Wo=8, P=4, V=32, B=128)
-    assert big.obs_probs.shape == (8, 7) and big.behaviours.shape[0] == 128
+    assert big.obstacles.probs.shape == (8, 7) and big.behaviours.offsets.shape[0] == 128
     for padded in (pad_arrays(arrays, **CAPS), big, pad_arrays(arrays, O=8, S=7, W=8, Wo=8, P=4, V=32, B=128,
                                                                junk=False)):
-        ev = evaluate(padded, p, samples, config=cfg)
+        ev = evaluate(padded, last, p, samples, config=cfg)
         res = unpack(ev, sit, SMALL_BEHAVIOURS, 0.0)
         assert_results_equal(res, natural)
         for i, ob in enumerate(sit.obstacles):
@@ -461,27 +468,27 @@ def test_argmin_ties_go_to_the_lowest_index(fixed_caps):
 
 # ============================================================================ compilation
 def test_no_recompilation_when_only_values_change(fixed_caps):
-    if not hasattr(evaluate, "_cache_size"):
+    if not hasattr(solve, "_cache_size"):
         pytest.skip("jax.jit(...)._cache_size() not available in this JAX version")
     cfg = cfg64("mc")
     planner = Planner(cfg, behaviours=SMALL_BEHAVIOURS)
     sit = random_situation(0)
     r0, _ = planner.plan(sit, key=key_for(0))
-    n0 = evaluate._cache_size()
+    n0 = solve._cache_size()
     own = replace(sit.own_ship, state=sit.own_ship.state + np.array([3.0, -2.0, 0.2, 0.5]))
     obs = tuple(replace(ob, state=ob.state + np.array([1.0, 2.0, 0.1, -0.1])) for ob in sit.obstacles)
     sit2 = Situation(own, obs, sit.polygons)
     params2 = Params(K_coll=40.0, d_safe=8.0, G1=50.0, kappa=3.0, T_d=80.0)
     r1, s1 = planner.plan(sit2, key=key_for(99), params=params2)
     r2, _ = planner.plan(random_situation(1), PlannerState((0.5, 0.2)), key=key_for(5))   # fewer obstacles
-    assert evaluate._cache_size() == n0
+    assert solve._cache_size() == n0
     assert not np.allclose(r1.costs["total"], r0.costs["total"])
     # a static config change does recompile (exactly once)
     other = Planner(cfg.replace(quad_span=6.5, estimator="quadrature", n_quad=20), behaviours=SMALL_BEHAVIOURS)
     other.plan(sit)
-    assert evaluate._cache_size() == n0 + 1
+    assert solve._cache_size() == n0 + 1
     other.plan(sit2, params=params2)
-    assert evaluate._cache_size() == n0 + 1
+    assert solve._cache_size() == n0 + 1
 
 
 def test_bucketing_keeps_shapes_for_nearby_sizes():
@@ -493,10 +500,10 @@ def test_bucketing_keeps_shapes_for_nearby_sizes():
     sit = random_situation(0)
     three = Situation(sit.own_ship, sit.obstacles, sit.polygons)
     four = Situation(sit.own_ship, sit.obstacles + sit.obstacles[:1], sit.polygons)
-    a = pack_situation(three, paper_behaviours(1), PlannerState(), cfg)
-    b = pack_situation(four, paper_behaviours(1)[:38], PlannerState(), cfg)
+    a = pack(three, paper_behaviours(1), cfg)
+    b = pack(four, paper_behaviours(1)[:38], cfg)
     assert jax.tree.map(jnp.shape, a) == jax.tree.map(jnp.shape, b)
-    assert a.obs_state.dtype == jnp.float64 and a.own_n.dtype == jnp.int32
+    assert a.obstacles.state.dtype == jnp.float64 and a.own.n.dtype == jnp.int32
 
 
 # ============================================================================ planner state
@@ -727,7 +734,7 @@ def test_bad_plan_arguments_raise_before_any_device_work(monkeypatch):
     calls = []
     import psbmpc_jax.planner as planner_mod
 
-    monkeypatch.setattr(planner_mod, "evaluate", lambda *a, **k: calls.append(1))
+    monkeypatch.setattr(planner_mod, "solve", lambda *a, **k: calls.append(1))
     sit = Situation(_own(), (_obs(),))
     planner = Planner(PlannerConfig(T=10.0, dt=0.5, estimator="mc"), behaviours=paper_behaviours(1))
     with pytest.raises(ValueError, match="key"):
@@ -768,4 +775,4 @@ def test_float64_without_x64_is_rejected():
 def test_public_api_exports():
     for name in psbmpc_jax.__all__:
         assert hasattr(psbmpc_jax, name), name
-    assert psbmpc_jax.SituationArrays is SituationArrays and psbmpc_jax.Evaluation is Evaluation
+    assert psbmpc_jax.SolveInputs is SolveInputs and psbmpc_jax.Evaluation is Evaluation

@@ -19,7 +19,7 @@ from shapely.geometry import Point, Polygon
 from psbmpc_jax import Obstacle, OwnShip, Params, PlannerConfig, Planner, Situation, paper_behaviours
 from psbmpc_jax import reference as ref_mod
 from psbmpc_jax.costs.grounding import edge_table, polygon_distance
-from psbmpc_jax.planner import pack_situation, PlannerState
+from psbmpc_jax.packing import pack
 from psbmpc_jax.problem import ring_vertices
 
 
@@ -32,7 +32,7 @@ def star(rng, n, cx, cy, r_min, r_max):
 
 
 def device_distance(rings, pts):
-    """Pack one polygon (tuple of rings) like pack_situation does and run the device kernel."""
+    """Pack one polygon (tuple of rings) like pack does and run the device kernel."""
     verts, nxt = ring_vertices(tuple(rings))
     tab = edge_table(jnp.asarray(verts), jnp.asarray(nxt))
     return polygon_distance(jnp.asarray(pts[:, 0]), jnp.asarray(pts[:, 1]), tab, len(verts))
@@ -82,7 +82,7 @@ def test_distance_gradient_is_finite():
 
 
 def test_evaluator_with_holed_polygon_matches_reference():
-    """A polygon with a hole goes through pack_situation and the evaluator like the reference says."""
+    """A polygon with a hole goes through pack and the evaluator like the reference says."""
     outer = np.array([[-50.0, 15.0], [250.0, 15.0], [250.0, 120.0], [-50.0, 120.0]])
     hole = np.array([[20.0, 30.0], [20.0, 100.0], [200.0, 100.0], [200.0, 30.0]])
     own = OwnShip([0.0, 0.0, 0.0, 2.0], [[0.0, 0.0], [400.0, 0.0]], 2.0)
@@ -97,5 +97,5 @@ def test_evaluator_with_holed_polygon_matches_reference():
     np.testing.assert_allclose(res.grounding_per_polygon, ref.so_j, rtol=1e-9, atol=1e-12)
     assert res.best_index == ref.best
     # the hole really is water: a starboard turn into the hole costs less than one into solid land would
-    arrays = pack_situation(sit, beh, PlannerState(), cfg)
-    assert int(arrays.poly_n[0]) == 8 and list(np.asarray(arrays.poly_next[0, :8])) == [1, 2, 3, 0, 5, 6, 7, 4]
+    polys = pack(sit, beh, cfg).world.polygons
+    assert int(polys.n[0]) == 8 and list(np.asarray(polys.next[0, :8])) == [1, 2, 3, 0, 5, 6, 7, 4]

@@ -1,4 +1,4 @@
-"""Tests of :func:`psbmpc_jax.sharding.evaluate_sharded` (behaviour axis split over devices with shard_map).
+"""Tests of :func:`psbmpc_jax.sharding.solve_sharded` (behaviour axis split over devices with shard_map).
 
 The in-process session has a single CPU device (its device count is fixed once JAX initialises), so the
 multi-device comparisons run in a subprocess with ``--xla_force_host_platform_device_count=4``: 4 devices
@@ -18,8 +18,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from psbmpc_jax import Planner, PlannerConfig, evaluate
-from psbmpc_jax.sharding import _sharded_fn, check_devices, evaluate_sharded, pad_behaviours
+from psbmpc_jax import Planner, PlannerConfig, solve
+from psbmpc_jax.packing import BehaviourArrays, pad_behaviours
+from psbmpc_jax.sharding import _sharded_fn, check_devices, solve_sharded
 
 from conftest import CAPS, SMALL_BEHAVIOURS, pad_arrays, random_situation
 
@@ -30,15 +31,23 @@ PER_B = ("total", "do", "colregs", "so", "path", "C", "mu", "so_j")
 
 def prepared(seed: int, config: PlannerConfig = CFG, **caps):
     planner = Planner(config, behaviours=SMALL_BEHAVIOURS)
-    arrays, params, samples = planner.prepare(random_situation(seed), key=jax.random.key(seed))
-    return pad_arrays(arrays, **{**CAPS, **caps}), params, samples
+    arrays, state, params, samples = planner.prepare(random_situation(seed), key=jax.random.key(seed))
+    return pad_arrays(arrays, **{**CAPS, **caps}), state, params, samples
 
 
-def assert_same(got, want, n_real: int, rtol: float = 1e-12):
+def _get(ev, name):
+    return ev.costs[name] if name in ev.costs else getattr(ev, name)
+
+
+def assert_same(got_out, want_out, n_real: int, rtol: float = 1e-12):
+    """Two solve results ``(plan, state, evaluation)`` agree on the first ``n_real`` behaviours."""
+    (got_plan, got_state, got), (want_plan, want_state, want) = got_out, want_out
+    assert int(got_plan.best) == int(want_plan.best) and int(got_plan.status) == int(want_plan.status) == 0
+    np.testing.assert_array_equal(np.asarray(got_state.last_offsets), np.asarray(want_state.last_offsets))
     assert int(got.best) == int(want.best)
     np.testing.assert_array_equal(np.asarray(got.best_offsets), np.asarray(want.best_offsets))
     for name in PER_B:
-        g, w = np.asarray(getattr(got, name)), np.asarray(getattr(want, name))
+        g, w = np.asarray(_get(got, name)), np.asarray(_get(want, name))
         assert g.shape == w.shape, name
         np.testing.assert_allclose(g[:n_real], w[:n_real], rtol=rtol, atol=1e-300, err_msg=name)
     for name in ("x", "y", "chi", "U"):
@@ -52,13 +61,13 @@ def assert_same(got, want, n_real: int, rtol: float = 1e-12):
 # ------------------------------------------------------------------------------------------ in process
 @pytest.mark.parametrize("seed", [0, 4])
 def test_single_device_matches_evaluate(seed):
-    arrays, params, samples = prepared(seed)
-    n_real = int(np.sum(np.asarray(arrays.beh_mask)))
-    want = evaluate(arrays, params, samples, config=CFG)
-    got = evaluate_sharded(arrays, params, samples, CFG)                  # default: jax.local_devices()
+    arrays, state, params, samples = prepared(seed)
+    n_real = int(np.sum(np.asarray(arrays.behaviours.mask)))
+    want = solve(arrays, state, params, samples, config=CFG)
+    got = solve_sharded(arrays, state, params, samples, CFG)              # default: jax.local_devices()
     assert_same(got, want, n_real)
-    assert int(got.n_pc_blocks) == int(want.n_pc_blocks)
-    assert np.all(np.isinf(np.asarray(got.total)[n_real:]))              # padded behaviours masked
+    assert int(got[2].n_pc_blocks) == int(want[2].n_pc_blocks)
+    assert np.all(np.isinf(np.asarray(got[2].total)[n_real:]))           # padded behaviours masked
     # one compiled program per (config, device set, shapes): the second seed must not recompile
     fn, _ = _sharded_fn(CFG, tuple(jax.local_devices()))
     assert fn._cache_size() == 1
@@ -67,25 +76,32 @@ def test_single_device_matches_evaluate(seed):
 def test_unbucketed_behaviour_count_and_mc():
     """B = 30 (not a multiple of 64) and the Monte Carlo estimator's sample table (replicated input)."""
     cfg = CFG.replace(estimator="mc")
-    arrays, params, samples = prepared(2, cfg, B=None)
-    arrays = arrays._replace(behaviours=arrays.behaviours[:30], beh_mask=arrays.beh_mask[:30])
-    want = evaluate(arrays, params, samples, config=cfg)
-    got = evaluate_sharded(arrays, params, samples, cfg, devices=jax.local_devices()[:1])
-    assert got.total.shape == (30,) and got.own.x.shape[1] == 30
+    arrays, state, params, samples = prepared(2, cfg, B=None)
+    beh = arrays.behaviours
+    arrays = arrays._replace(behaviours=BehaviourArrays(beh.offsets[:30], beh.mask[:30]))
+    want = solve(arrays, state, params, samples, config=cfg)
+    got = solve_sharded(arrays, state, params, samples, cfg, devices=jax.local_devices()[:1])
+    assert got[2].total.shape == (30,) and got[2].own.x.shape[1] == 30
     assert_same(got, want, 30)
 
 
 def test_pad_behaviours():
     beh = np.arange(7 * 2 * 2, dtype=float).reshape(7, 2, 2)
     mask = np.array([True] * 5 + [False] * 2)
-    pb, pm = pad_behaviours(beh, mask, 4)
+    arrays = prepared(0)[0]._replace(behaviours=BehaviourArrays(jnp.asarray(beh), jnp.asarray(mask)))
+
+    def padded(multiple):
+        out = pad_behaviours(arrays, multiple).behaviours
+        return np.asarray(out.offsets), np.asarray(out.mask)
+
+    pb, pm = padded(4)
     assert pb.shape == (8, 2, 2) and pm.shape == (8,)
     np.testing.assert_array_equal(pb[:7], beh)
     np.testing.assert_array_equal(pb[7], beh[0])                           # masked copy of behaviour 0
     np.testing.assert_array_equal(pm, [True] * 5 + [False] * 3)
-    pb, pm = pad_behaviours(beh, mask, 3)
+    pb, pm = padded(3)
     assert pb.shape[0] == 9 and not pm[7:].any()
-    pb, pm = pad_behaviours(beh, mask, 7)                                  # already a multiple
+    pb, pm = padded(7)                                                     # already a multiple
     np.testing.assert_array_equal(pb, beh)
     np.testing.assert_array_equal(pm, mask)
 
@@ -95,28 +111,31 @@ class _FakeGpu:
 
 
 def test_device_errors():
-    arrays, params, samples = prepared(0)
+    arrays, state, params, samples = prepared(0)
     with pytest.raises(ValueError, match="at least one device"):
-        evaluate_sharded(arrays, params, samples, CFG, devices=[])
+        solve_sharded(arrays, state, params, samples, CFG, devices=[])
     with pytest.raises(ValueError, match="one platform"):
         check_devices([jax.local_devices()[0], _FakeGpu()])
     with pytest.raises(ValueError, match="jax devices"):
-        evaluate_sharded(arrays, params, samples, CFG, devices=["cpu:0"])
+        solve_sharded(arrays, state, params, samples, CFG, devices=["cpu:0"])
     with pytest.raises(ValueError, match="distinct"):
         check_devices(jax.local_devices()[:1] * 2)
     assert check_devices(None) == tuple(jax.local_devices())
 
 
 def test_behaviour_errors():
-    arrays, params, samples = prepared(0)
-    empty = arrays._replace(behaviours=arrays.behaviours[:0], beh_mask=arrays.beh_mask[:0])
+    arrays, state, params, samples = prepared(0)
+    beh = arrays.behaviours
+    empty = arrays._replace(behaviours=BehaviourArrays(beh.offsets[:0], beh.mask[:0]))
     with pytest.raises(ValueError, match="at least one real"):
-        evaluate_sharded(empty, params, samples, CFG)
-    all_masked = arrays._replace(beh_mask=jnp.zeros_like(arrays.beh_mask))
+        solve_sharded(empty, state, params, samples, CFG)
+    all_masked = arrays._replace(behaviours=BehaviourArrays(beh.offsets, jnp.zeros_like(beh.mask)))
     with pytest.raises(ValueError, match="at least one real"):
-        evaluate_sharded(all_masked, params, samples, CFG)
+        solve_sharded(all_masked, state, params, samples, CFG)
     with pytest.raises(ValueError, match="PlannerConfig"):
-        evaluate_sharded(arrays, params, samples, "float64")
+        solve_sharded(arrays, state, params, samples, "float64")
+    with pytest.raises(ValueError, match="PlannerState"):
+        solve_sharded(arrays, (1.0, 0.0), params, samples, CFG)
 
 
 # ------------------------------------------------------------------------------------------ 4 host devices
@@ -128,21 +147,23 @@ SCRIPT = textwrap.dedent("""
     tests = importlib.util.spec_from_file_location("sharding_tests", sys.argv[2])
     sys.modules["conftest"] = conf
     t = importlib.util.module_from_spec(tests); tests.loader.exec_module(t)
-    from psbmpc_jax import evaluate
-    from psbmpc_jax.planner import unpack
-    from psbmpc_jax.sharding import evaluate_sharded
+    from psbmpc_jax import solve
+    from psbmpc_jax.packing import unpack
+    from psbmpc_jax.sharding import solve_sharded
     if len(sys.argv) > 3:
         jax.config.update("jax_compilation_cache_dir", sys.argv[3])
         jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
     devs = jax.local_devices()
     assert len(devs) == 4 and jax.config.jax_enable_x64, (devs, jax.config.jax_enable_x64)
     for seed in (0, 2, 4):
-        arrays, params, samples = t.prepared(seed)
-        n_real = int(np.sum(np.asarray(arrays.beh_mask)))
-        want = evaluate(arrays, params, samples, config=t.CFG)
+        arrays, state, params, samples = t.prepared(seed)
+        n_real = int(np.sum(np.asarray(arrays.behaviours.mask)))
+        want_out = solve(arrays, state, params, samples, config=t.CFG)
+        want = want_out[2]
         for n_dev in (4, 3):
-            got = evaluate_sharded(arrays, params, samples, t.CFG, devices=devs[:n_dev])
-            t.assert_same(got, want, n_real)
+            got_out = solve_sharded(arrays, state, params, samples, t.CFG, devices=devs[:n_dev])
+            t.assert_same(got_out, want_out, n_real)
+            got = got_out[2]
             assert set(got.total.sharding.device_set) <= set(devs[:n_dev])
             assert len(got.C.sharding.device_set) == n_dev            # really spread over the devices
             if n_dev == 4:                                            # 64 % 4 == 0: no extra padding

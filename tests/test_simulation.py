@@ -14,7 +14,6 @@ from psbmpc_jax.cli import main
 from psbmpc_jax.scenario import load_scenario, scenario_from_dict
 from psbmpc_jax.sim import simulate
 from psbmpc_jax.sim.metrics import maneuver_compliance
-from psbmpc_jax.sim.simulator import stack_arrays
 from psbmpc_jax.sim.vessel import extend_route, los_course, pad_routes
 
 
@@ -89,7 +88,8 @@ def test_vmap_batch_equals_loop():
     assert loop.summary["device_calls"] == 2 * loop.summary["mpc_updates"] == loop.summary["solves"]
 
 
-def test_stack_arrays_pads_waypoints():
+def test_stack_pads_waypoints():
+    from psbmpc_jax.packing import stack
     from psbmpc_jax.planner import Planner
     from psbmpc_jax.problem import OwnShip, Situation
 
@@ -97,15 +97,16 @@ def test_stack_arrays_pads_waypoints():
     s2 = Situation(OwnShip([0, 0, 0, 2], [[0, 0], [100, 0]], 2.0))
     s3 = Situation(OwnShip([0, 0, 0, 2], [[0, 0], [100, 0], [200, 50], [300, 50], [400, 0]], 2.0))
     a2, a3 = pl.prepare(s2)[0], pl.prepare(s3)[0]
-    st = stack_arrays([a2, a3])
-    assert st.own_wx.shape == (2, 1, a3.own_wx.shape[-1])
-    np.testing.assert_array_equal(np.asarray(st.own_n)[:, 0], [2, 5])
-    np.testing.assert_array_equal(np.asarray(st.own_wx[1]), np.asarray(a3.own_wx))
+    st = stack([a2, a3])
+    assert st.own.wx.shape == (2, 1, a3.own.wx.shape[-1])
+    np.testing.assert_array_equal(np.asarray(st.own.n)[:, 0], [2, 5])
+    np.testing.assert_array_equal(np.asarray(st.own.wx[1]), np.asarray(a3.own.wx))
     # chart, grid and behaviour table are shared by every solve of an update: not stacked, broadcast by vmap
-    assert st.behaviours.shape == a2.behaviours.shape and st.grid_values.shape == a2.grid_values.shape
+    assert st.behaviours.offsets.shape == a2.behaviours.offsets.shape
+    assert st.world.grid.values.shape == a2.world.grid.values.shape
     few = Planner(behaviours=np.zeros((3, 1, 2)))
-    with pytest.raises(ValueError, match="must share behaviours"):
-        stack_arrays([a2, few.prepare(s2)[0]])
+    with pytest.raises(ValueError, match="must share their behaviours"):
+        stack([a2, few.prepare(s2)[0]])
 
 
 def test_los_course_follows_route_and_switches():

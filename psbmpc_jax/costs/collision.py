@@ -16,7 +16,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..numerics import normal_cdf
+from ..numerics import normal_cdf, safe_sqrt
+from .base import Context, TermValue, cost_term
 
 LOG_2PI = math.log(2.0 * math.pi)
 
@@ -38,7 +39,7 @@ def standard_normal_table(key, config, dtype=None):
 def _cholesky2(sxx, sxy, syy):
     l00 = jnp.sqrt(sxx)
     l10 = sxy / l00
-    l11 = jnp.sqrt(jnp.maximum(syy - l10 * l10, 0.0))
+    l11 = safe_sqrt(syy - l10 * l10)
     return l00, l10, l11
 
 
@@ -47,7 +48,7 @@ def pc_quadrature(dx, dy, sxx, sxy, syy, R, n_quad: int = 32, span: float = 6.0)
     t_np, w_np = np.polynomial.legendre.leggauss(n_quad)
     t, w = jnp.asarray(t_np, dx.dtype), jnp.asarray(w_np, dx.dtype)
     R = jnp.broadcast_to(R, jnp.shape(dx))
-    d = jnp.sqrt(dx * dx + dy * dy)
+    d = safe_sqrt(dx * dx + dy * dy)                                   # finite gradient at d = 0
     pos = d > 0
     d_safe = jnp.where(pos, d, 1.0)
     ux, uy = jnp.where(pos, dx / d_safe, 1.0), jnp.where(pos, dy / d_safe, 0.0)
@@ -56,14 +57,16 @@ def pc_quadrature(dx, dy, sxx, sxy, syy, R, n_quad: int = 32, span: float = 6.0)
     s_uv = ux * vx * sxx + (ux * vy + uy * vx) * sxy + uy * vy * syy
     s_vv = vx * vx * sxx + 2 * vx * vy * sxy + vy * vy * syy
     sx = jnp.sqrt(s_uu)
-    s = jnp.sqrt(jnp.maximum(s_vv - s_uv * s_uv / s_uu, 0.0))
+    s = safe_sqrt(s_vv - s_uv * s_uv / s_uu)
     a = jnp.maximum(-R, d - span * sx)
     b = jnp.minimum(R, d + span * sx)
     nonempty = a < b
     # half-angle substitution x = 2Ru/(1+u^2): rational (no trig per node) and it removes the square-root
     # end-point behaviour of the chord half-width h = sqrt(R^2 - x^2) = R(1-u^2)/(1+u^2)
-    u_a = a / (R + jnp.sqrt(jnp.maximum(R * R - a * a, 0.0)))
-    u_b = b / (R + jnp.sqrt(jnp.maximum(R * R - b * b, 0.0)))
+    # safe_sqrt: a or b clamped at +-R (or beyond R when the window misses the disc) must not give
+    # 0 * inf = NaN gradients
+    u_a = a / (R + safe_sqrt(R * R - a * a))
+    u_b = b / (R + safe_sqrt(R * R - b * b))
     half = 0.5 * (u_b - u_a)
     mid = 0.5 * (u_b + u_a)
     u = half[..., None] * t + mid[..., None]                         # [..., n_quad]
@@ -159,3 +162,131 @@ def collision_probability(dx, dy, sxx, sxy, syy, R, params, config, samples=None
     if config.estimator == "ce":
         return pc_ce(dx, dy, sxx, sxy, syy, R, samples, params.ce_rho, params.ce_alpha, params.ce_chi2)
     raise ValueError(f"estimator must be one of ('quadrature', 'mc', 'ce'), got {config.estimator!r}")
+
+
+# ------------------------------------------------------------------------------------------- the term
+def _pad_time(a, t_pad: int):
+    """Pad the (leading) time axis at the end by repeating the last sample."""
+    if t_pad == 0:
+        return a
+    return jnp.pad(a, [(0, t_pad)] + [(0, 0)] * (a.ndim - 1), mode="edge")
+
+
+def pair_geometry(ctx: Context):
+    """Time-major relative geometry of every (time, obstacle·scenario, row) point: obstacle minus own-ship
+    position ``dx, dy [T, O·S, B]`` and a mask ``live`` of real scenarios.  Shared (through XLA's CSE) by the
+    collision and COLREGS terms."""
+    n_t = ctx.own.x.shape[0]
+    n_os = ctx.obstacles.x.shape[1] * ctx.obstacles.x.shape[2]
+    qx, qy = ctx.obstacles.x.reshape(n_t, n_os), ctx.obstacles.y.reshape(n_t, n_os)
+    dx = qx[:, :, None] - ctx.own.x[:, None, :]
+    dy = qy[:, :, None] - ctx.own.y[:, None, :]
+    return dx, dy, ctx.scen_valid.reshape(n_os)
+
+
+def collision_kernel(ctx: Context, params, config, samples):
+    """C [B, O·S] = max_k ζ_i K_coll ‖v_0 − v_i‖² P̂ e^{−t_k/T_d} over the points that pass the σ-shortcut
+    (distance ≤ R + c_σ σ_max), and the number of (row, time-block) pairs the estimator evaluated.
+
+    Everything is time-major ([T, O·S, B]): reductions over time run over the leading axis, so the inner,
+    vectorised axis is always the long behaviour axis (measured 2x faster than [B, O·S, T] on XLA:CPU).
+
+    Layouts: ``ctx.dense`` or ``config.pc_layout == "dense"`` evaluates every point (differentiable; the
+    shortcut is a ``where``).  Otherwise ("compact", the grid search's fast path) a cheap dense pass finds
+    the points that pass the shortcut, the (row, time-block) pairs holding one are compacted and only those
+    are sent, ``chunk_rows`` at a time, through the (expensive) estimator."""
+    own, obs, t = ctx.own, ctx.obstacles, ctx.t
+    n_t, n_b = own.x.shape
+    n_o, n_s = obs.x.shape[1:]
+    n_os = n_o * n_s
+    tb = min(config.time_block, n_t)
+    n_blk = -(-n_t // tb)
+    t_pad = n_blk * tb - n_t
+    dtype = own.x.dtype
+
+    t_valid = jnp.arange(n_blk * tb) < n_t
+    disc = _pad_time(jnp.exp(-t / params.T_d), t_pad)                          # [Tp]
+    px, py = _pad_time(own.x, t_pad), _pad_time(own.y, t_pad)                   # [Tp, B]
+    vx, vy = _pad_time(own.vx, t_pad), _pad_time(own.vy, t_pad)
+    flat = lambda a: _pad_time(a.reshape(n_t, n_os), t_pad)                     # [Tp, O·S]
+    wx, wy = flat(obs.vx), flat(obs.vy)
+    sxx, sxy, syy, smax = (_pad_time(c.T, t_pad) for c in ctx.cov_stats)       # [Tp, O]
+    rep_s = lambda a: jnp.repeat(a, n_s, axis=-1)                               # [..., O] -> [..., O·S]
+    r_os = rep_s(ctx.radius)                                                    # [O·S]
+    thr_os = rep_s(ctx.radius[None, :] + params.c_sigma * smax)                 # [Tp, O·S]
+    zk_os = rep_s(ctx.zeta_k)
+
+    dx, dy, valid_os = pair_geometry(ctx)
+    dx, dy = _pad_time(dx, t_pad), _pad_time(dy, t_pad)
+    live = t_valid[:, None, None] & valid_os[None, :, None]
+    active = (dx * dx + dy * dy <= (thr_os ** 2)[:, :, None]) & live
+
+    def point_terms(dx, dy, dvx, dvy, s_xx, s_xy, s_yy, rad, zk, dsc, act):
+        p = collision_probability(dx, dy, s_xx, s_xy, s_yy, rad, params, config, samples)
+        return jnp.where(act, zk * (dvx * dvx + dvy * dvy) * p * dsc, 0.0)
+
+    if ctx.dense or config.pc_layout == "dense":
+        o_of = jnp.arange(n_os) // n_s
+        terms = point_terms(dx, dy, wx[:, :, None] - vx[:, None], wy[:, :, None] - vy[:, None],
+                            sxx[:, o_of, None], sxy[:, o_of, None], syy[:, o_of, None], r_os[None, :, None],
+                            zk_os[None, :, None], disc[:, None, None], active)
+        n_blocks = jnp.sum(jnp.any(active.reshape(n_blk, tb, n_os, n_b), axis=1))
+        return jnp.max(terms, axis=0).T, n_blocks
+
+    # compact: the (row, time-block) pairs holding an active point, per row (o·s, l) from its first to its
+    # last such block (one contiguous run of items per row), enumerated by a cumsum over the rows
+    blk_act = jnp.any(active.reshape(n_blk, tb, n_os, n_b), axis=1)             # [nblk, O·S, B]
+    b_all = jnp.arange(n_blk, dtype=jnp.int32)[:, None, None]
+    b_first = jnp.min(jnp.where(blk_act, b_all, n_blk), axis=0).reshape(-1)     # rows ordered (o·s, l)
+    b_last = jnp.max(jnp.where(blk_act, b_all, -1), axis=0).reshape(-1)
+    n_items = jnp.maximum(b_last - b_first + 1, 0).astype(jnp.int32)
+    ends = jnp.cumsum(n_items)
+    total_items = ends[-1]
+    chunk = config.chunk_rows
+    blk3 = lambda a: a.reshape((n_blk, tb) + a.shape[1:])                       # [nblk, tb, ...]
+    px3, py3, vx3, vy3 = blk3(px), blk3(py), blk3(vx), blk3(vy)
+    qx3, qy3 = blk3(flat(obs.x)), blk3(flat(obs.y))
+    wx3, wy3, thr3 = blk3(wx), blk3(wy), blk3(thr_os)
+    sxx3, sxy3, syy3 = blk3(sxx), blk3(sxy), blk3(syy)
+    disc2, tval2 = disc.reshape(n_blk, tb), t_valid.reshape(n_blk, tb)
+
+    def body(state):
+        c, acc = state
+        q = c * chunk + jnp.arange(chunk, dtype=jnp.int32)
+        ok = q < total_items
+        row = jnp.minimum(jnp.searchsorted(ends, q, side="right"), n_b * n_os - 1).astype(jnp.int32)
+        blk = jnp.where(ok, b_first[row] + q - (ends[row] - n_items[row]), 0)
+        os_, l = row // n_b, row % n_b
+        o = os_ // n_s
+        g = lambda a3, idx: a3[blk, :, idx]                                     # [chunk, tb] windows
+        dx_ = g(qx3, os_) - g(px3, l)
+        dy_ = g(qy3, os_) - g(py3, l)
+        act = (dx_ * dx_ + dy_ * dy_ <= g(thr3, os_) ** 2) & tval2[blk] & ok[:, None]
+        # materialise the gathered windows once: otherwise XLA may fuse the gathers into the estimator's
+        # per-sample loop and redo them for every sample (measured 3x slower for mc)
+        win = jax.lax.optimization_barrier(
+            (dx_, dy_, g(wx3, os_) - g(vx3, l), g(wy3, os_) - g(vy3, l), g(sxx3, o), g(sxy3, o), g(syy3, o), act))
+        terms = point_terms(*win[:7], r_os[os_][:, None], zk_os[os_][:, None], disc2[blk], win[7])
+        acc = acc.at[row].max(jnp.where(ok, jnp.max(terms, axis=-1), 0.0))
+        return c + 1, acc
+
+    acc0 = jnp.zeros((n_os * n_b,), dtype)
+    _, acc = jax.lax.while_loop(lambda s: s[0] * chunk < total_items, body, (jnp.int32(0), acc0))
+    return acc.reshape(n_os, n_b).T, total_items
+
+
+@cost_term
+class CollisionTerm:
+    """H_do = Σ_i w_i Σ_s P_s C_s^{l,i} (eqs. 10, 14): the collision probability of each (obstacle,
+    scenario) times the kinetic-energy factor ζ_i K_coll ‖v_0 − v_i‖² and the discount e^{−t/T_d}, maximised
+    over time, with the σ-shortcut.  Details: ``C [B, O, S]``; counter ``n_pc_blocks``."""
+
+    name = "do"
+    PARAMS = ("d_safe", "K_coll", "T_d", "c_sigma", "ce_rho", "ce_alpha", "ce_chi2")
+    smooth = True            # with the quadrature estimator (mc and ce are piecewise constant in the controls)
+
+    def __call__(self, ctx: Context, params, config, samples) -> TermValue:
+        n_o, n_s = ctx.scen_weight.shape
+        c_flat, n_blocks = collision_kernel(ctx, params, config, samples)
+        c = c_flat.reshape(-1, n_o, n_s)
+        return TermValue(jnp.sum(ctx.scen_weight[None] * c, axis=(1, 2)), {"C": c}, {"n_pc_blocks": n_blocks})

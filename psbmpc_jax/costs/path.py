@@ -5,6 +5,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 
 from ..numerics import wrap_angle
+from .base import Context, TermValue, cost_term
 
 
 def _f(u, chi, p):
@@ -28,3 +29,16 @@ def path_cost(offsets, last_offsets, params):
         return first
     change = jnp.sum(_h(u[:, 1:], chi[:, 1:], u[:, :-1], chi[:, :-1], params), axis=1) / (n_m - 1)
     return first + change
+
+
+@cost_term
+class PathTerm:
+    """H_p (eq. 17): deviation from the nominal speed and course and from the last applied offsets.
+    For per-step controls (n_M = N) the same formula averages over the N steps."""
+
+    name = "path"
+    PARAMS = ("K_u", "K_du", "K_chi_stbd", "K_chi_port", "K_dchi_stbd", "K_dchi_port")
+    smooth = True            # piecewise smooth: the port/starboard weights switch at 0
+
+    def __call__(self, ctx: Context, params, config, samples) -> TermValue:
+        return TermValue(path_cost(ctx.offsets, ctx.last_offsets, params))

@@ -27,18 +27,23 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..costs.base import term_names
 from ..costs.collision import standard_normal_table
 from ..distance_grid import build_distance_grid
-from ..evaluate import SituationArrays, evaluate, evaluate_arrays
+from ..evaluate import DEFAULT_TERMS
+from ..packing import SHARED_AXES, pack, stack, unpack
 from ..params import params_as_arrays
-from ..planner import COST_TERMS, PlannerState, check_dtype, pack_situation, unpack
+from ..planner import check_dtype
 from ..problem import Obstacle, OwnShip, Situation
+from ..solve import Plan, PlannerState, solve, solve_arrays
 from ..scenario import Scenario, _integer, _multiple_of
 from . import metrics as metrics_mod
 from .tracker import TrackerBank
 from .vessel import extend_route, kinematic_step, los_course, nominal_speed, pad_routes
 
 BATCH_MODES = ("auto", "vmap", "loop")
+#: Columns of ``SimulationResult.best_costs`` (the simulator plans with the default cost terms).
+COST_NAMES = term_names(DEFAULT_TERMS)
 
 
 @dataclass
@@ -54,7 +59,8 @@ class SimulationResult:
         solve_t: MPC update times ``[M]``.
         offsets: applied (speed factor, course offset [rad]) ``[R, n_ships, M, 2]`` (nan for ships without
             PSB-MPC).
-        best_costs: cost terms of the chosen behaviour ``[R, n_ships, M, 5]`` (total, do, colregs, so, path).
+        best_costs: cost columns of the chosen behaviour ``[R, n_ships, M, len(COST_NAMES)]`` (total, then
+            the terms: do, colregs, so, path).
         calls: one dict per MPC update: time, number of solves, number of device calls (1 with vmap, one per
             solve in the loop), wall time of all of them [s].
         snapshot: one solve of run ``snapshot_run``'s own-ship kept in full (all candidate trajectories and
@@ -79,54 +85,16 @@ class SimulationResult:
 
 
 # ------------------------------------------------------------------------------------------- device calls
-#: Fields every solve of one MPC update shares (one chart, one distance grid, one behaviour table): taken
-#: once and broadcast by vmap instead of stacked per solve (the Nidelva grid alone is ~16 MB)
-_SHARED_FIELDS = ("poly_vertices", "poly_next", "poly_n", "poly_mask", "grid_values", "grid_origin", "grid_spacing",
-                  "grid_margin", "grid_active", "behaviours", "beh_mask")
-_IN_AXES = SituationArrays(**{f: None if f in _SHARED_FIELDS else 0 for f in SituationArrays._fields})
-
-
 @functools.lru_cache(maxsize=8)
-def _batched_evaluate(config):
-    return jax.jit(jax.vmap(functools.partial(evaluate_arrays, config=config), in_axes=(_IN_AXES, None, None)))
+def _batched_solve(config):
+    """vmap of the solve step over the solves of one MPC update (chart, grid and behaviours broadcast)."""
+    return jax.jit(jax.vmap(functools.partial(solve_arrays, config=config), in_axes=(SHARED_AXES, 0, None, None)))
 
 
 @jax.jit
-def _pick(ev):
-    """Best index and its five cost terms (works batched: leading axes are kept)."""
-    costs = jnp.stack([getattr(ev, term) for term in COST_TERMS], axis=-1)              # [..., B, 5]
-    return ev.best, jnp.take_along_axis(costs, ev.best[..., None, None], axis=-2)[..., 0, :]
-
-
-_WAYPOINT_FIELDS = ("own_wx", "own_wy", "obs_wx", "obs_wy")
-
-
-def stack_arrays(items):
-    """Stack packed situations along a new leading axis, padding waypoint capacities to the largest
-    (padding waypoints beyond the valid count never enter the guidance).
-
-    The ``_SHARED_FIELDS`` (chart, grid, behaviours) are taken from the first item unstacked, to go with
-    ``_IN_AXES``: the items must share them, as all solves of one MPC update do (shapes are checked)."""
-    for f in _SHARED_FIELDS:
-        shapes = {getattr(a, f).shape for a in items}
-        if len(shapes) > 1:
-            raise ValueError(f"stack_arrays: the situations must share {f} (chart, grid and behaviours), got "
-                             f"shapes {sorted(shapes)}")
-    w_own = max(a.own_wx.shape[-1] for a in items)
-    w_obs = max(a.obs_wx.shape[-1] for a in items)
-
-    def pad(a):
-        rep = {}
-        for name in _WAYPOINT_FIELDS:
-            v = getattr(a, name)
-            w = w_own if name.startswith("own") else w_obs
-            if v.shape[-1] < w:
-                rep[name] = jnp.pad(v, [(0, 0)] * (v.ndim - 1) + [(0, w - v.shape[-1])], mode="edge")
-        return a._replace(**rep)
-
-    padded = [pad(a) for a in items]
-    return SituationArrays(**{f: getattr(items[0], f) if f in _SHARED_FIELDS
-                              else jnp.stack([getattr(a, f) for a in padded]) for f in SituationArrays._fields})
+def _costs_row(plan: Plan):
+    """The chosen behaviour's cost columns ``[..., 1 + n_terms]`` (total first, then the terms in order)."""
+    return jnp.stack([plan.total] + [plan.costs[name] for name in COST_NAMES[1:]], axis=-1)
 
 
 def resolve_batch_mode(batch: str) -> str:
@@ -178,22 +146,23 @@ class _Progress:
 
 # ------------------------------------------------------------------------------------------- simulation
 class _Solver:
-    """Device side of one MPC update: evaluate packed situations (one vmapped call or one call each) and return
-    the chosen behaviour indices, their cost terms and, on request, one situation's full evaluation."""
+    """Device side of one MPC update: solve packed situations (one vmapped call or one call each) and return
+    the chosen behaviour indices, their cost columns and, on request, one situation's full evaluation."""
 
     def __init__(self, mode: str, config, params, samples):
         self.mode, self.config, self.params, self.samples = mode, config, params, samples
 
-    def __call__(self, packed: list, keep: int | None):
+    def __call__(self, packed: list, states: list, keep: int | None):
         if self.mode == "vmap":
-            ev = _batched_evaluate(self.config)(stack_arrays(packed), self.params, self.samples)
-            best, costs = jax.device_get(_pick(ev))
+            batch_state = jax.tree.map(lambda *a: jnp.stack([jnp.asarray(x) for x in a]), *states)
+            plan, _, ev = _batched_solve(self.config)(stack(packed), batch_state, self.params, self.samples)
+            best, costs = jax.device_get((plan.best, _costs_row(plan)))
             kept = jax.tree.map(lambda a: a[keep], ev) if keep is not None else None
             return np.asarray(best), np.asarray(costs), kept
         outs, kept = [], None
-        for n, a in enumerate(packed):
-            ev = evaluate(a, self.params, self.samples, config=self.config)
-            outs.append(_pick(ev))
+        for n, (inputs, state) in enumerate(zip(packed, states)):
+            plan, _, ev = solve(inputs, state, self.params, self.samples, config=self.config)
+            outs.append((plan.best, _costs_row(plan)))
             if n == keep:
                 kept = ev
         host = jax.device_get(outs)
@@ -247,7 +216,7 @@ class _ClosedLoop:
         self.solve_steps = list(range(0, K, self.mpc_every))
         M = len(self.solve_steps)
         self.offsets = np.full((R, n, M, 2), np.nan)
-        self.best_costs = np.full((R, n, M, 5), np.nan)
+        self.best_costs = np.full((R, n, M, len(COST_NAMES)), np.nan)
         self.calls, self.snapshot, self.snap_pending = [], None, bool(self.colav[0])
         pos_var, vel_var = sensor.colav_target_cov
         self.true_cov = np.diag([pos_var, pos_var, vel_var, vel_var])
@@ -286,12 +255,11 @@ class _ClosedLoop:
         mpc, config = self.sc.mpc, self.sc.mpc.config
         m = k // self.mpc_every
         jobs = [(r, i) for r in range(self.R) for i in np.flatnonzero(self.colav)]
-        packed = [pack_situation(self.situation(r, i, k), mpc.behaviours,
-                                 PlannerState((self.u_c[r, i], self.chi_off[r, i])), config, self.grid)
-                  for r, i in jobs]
+        packed = [pack(self.situation(r, i, k), mpc.behaviours, config, grid=self.grid) for r, i in jobs]
+        states = [PlannerState((self.u_c[r, i], self.chi_off[r, i])) for r, i in jobs]
         keep = jobs.index((self.snapshot_run, 0)) if self.snap_pending else None
         t0 = time.perf_counter()
-        best, costs, kept = self.solver(packed, keep)
+        best, costs, kept = self.solver(packed, states, keep)
         wall = time.perf_counter() - t0
         self.calls.append({"t_s": float(self.t[k]), "solves": len(jobs),
                            "device_calls": self.solver.device_calls(len(jobs)), "wall_s": wall})
@@ -309,7 +277,7 @@ class _ClosedLoop:
         manoeuvring = bool(self.u_c[r, 0] != 1.0 or self.chi_off[r, 0] != 0.0)
         if self.snapshot is None or manoeuvring:
             res = unpack(ev, self.situation(r, 0, k), self.sc.mpc.behaviours, wall,
-                         per_polygon=self.sc.mpc.config.grounding_mode == "exact")
+                         per_polygon=self.sc.mpc.config.grounding_mode == "exact", names=COST_NAMES)
             self.snapshot = {"t_s": float(self.t[k]), "run": r, "best_index": res.best_index,
                              "own_trajectories": res.own_trajectories, "total_cost": res.costs["total"],
                              "obstacle_trajectories": res.obstacle_trajectories, "manoeuvring": manoeuvring}

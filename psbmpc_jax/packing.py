@@ -1,0 +1,391 @@
+"""Host objects <-> device arrays, in one place: capacities, padding, stacking for vmap, and unpacking.
+
+Device inputs of one solve are nested by what they describe (every leaf padded to a capacity, masks mark
+the real rows):
+
+* :class:`OwnShipArrays` — state ``[4]``, route ``wx, wy [1, W]`` with ``n [1]`` valid points, ``U_d``,
+  ``length``;
+* :class:`ObstacleArrays` — ``state [O, 4]``, ``cov [O, 4, 4]``, ``length [O]``, routes ``wx, wy [O, Wo]``
+  with ``n [O]``, ``n_ps [O]``, ``probs [O, S]`` (0 in padding), ``weight [O]``, ``zeta [O]``, ``mask [O]``;
+* :class:`WorldArrays` — the chart as polygons (:class:`ChartArrays`: ``vertices [P, V, 2]``, ``next [P, V]``
+  — the next vertex of the same ring, a polygon holding its outer ring and holes back to back, even-odd
+  rule —, ``n [P]`` valid vertex slots = edges, ``mask [P]``) and as a distance grid (:class:`GridArrays`,
+  ``active`` False when there is none);
+* :class:`BehaviourArrays` — ``offsets [B, n_M, 2]``, ``mask [B]``;
+
+bundled as :class:`SolveInputs`.  Capacities are an argument (:class:`Capacities`); by default they are
+bucketed so that a stream of situations with slowly varying sizes compiles a handful of times.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from .distance_grid import DistanceGrid, build_distance_grid
+from .problem import Situation, ring_vertices
+
+
+# ------------------------------------------------------------------------------------------- device types
+class OwnShipArrays(NamedTuple):
+    state: jax.Array
+    wx: jax.Array
+    wy: jax.Array
+    n: jax.Array
+    U_d: jax.Array
+    length: jax.Array
+
+
+class ObstacleArrays(NamedTuple):
+    state: jax.Array
+    cov: jax.Array
+    length: jax.Array
+    wx: jax.Array
+    wy: jax.Array
+    n: jax.Array
+    n_ps: jax.Array
+    probs: jax.Array
+    weight: jax.Array
+    zeta: jax.Array
+    mask: jax.Array
+
+
+class ChartArrays(NamedTuple):
+    vertices: jax.Array
+    next: jax.Array
+    n: jax.Array
+    mask: jax.Array
+
+
+class GridArrays(NamedTuple):
+    values: jax.Array
+    origin: jax.Array
+    spacing: jax.Array
+    margin: jax.Array
+    active: jax.Array
+
+    def distance_grid(self) -> DistanceGrid:
+        return DistanceGrid(self.values, self.origin, self.spacing, self.margin)
+
+
+class WorldArrays(NamedTuple):
+    polygons: ChartArrays
+    grid: GridArrays
+
+
+class BehaviourArrays(NamedTuple):
+    offsets: jax.Array
+    mask: jax.Array
+
+
+class SolveInputs(NamedTuple):
+    """Padded device inputs of one solve (see the module docstring for every field)."""
+
+    own: OwnShipArrays
+    obstacles: ObstacleArrays
+    world: WorldArrays
+    behaviours: BehaviourArrays
+
+
+# ------------------------------------------------------------------------------------------- capacities
+def bucket(n: int, minimum: int = 1) -> int:
+    """Smallest power of two >= max(n, minimum) (0 stays 0 when minimum is 0)."""
+    n = max(int(n), minimum)
+    return 0 if n == 0 else 1 << (n - 1).bit_length()
+
+
+def bucket_scenarios(n: int) -> int:
+    """Scenario capacity: exact for odd n <= 9 (the common cases), else a multiple of 8."""
+    return n if n <= 9 else -(-n // 8) * 8
+
+
+def bucket_behaviours(n: int) -> int:
+    """Behaviour capacity: a multiple of 64 (1014 -> 1024)."""
+    return -(-n // 64) * 64
+
+
+@dataclass(frozen=True)
+class Capacities:
+    """Padded sizes of the device inputs: obstacles O, scenarios S, own-route waypoints W, obstacle-route
+    waypoints Wo, polygons P, vertices per polygon V, behaviours B.  ``None`` = bucketed from the data."""
+
+    obstacles: int | None = None
+    scenarios: int | None = None
+    waypoints: int | None = None
+    obstacle_waypoints: int | None = None
+    polygons: int | None = None
+    vertices: int | None = None
+    behaviours: int | None = None
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if v is not None and (isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 0):
+                raise ValueError(f"Capacities.{f.name} must be an integer >= 0 or None, got {v!r}")
+
+
+def _capacity(given, needed: int, default: int, what: str) -> int:
+    if given is None:
+        return default
+    if given < needed:
+        raise ValueError(f"Capacities.{what} = {given} is too small: this situation needs {needed}")
+    return int(given)
+
+
+def _obstacle_route(ob, horizon: float) -> np.ndarray:
+    """The route an obstacle is predicted along: its waypoints, or a straight line along its velocity."""
+    if ob.waypoints is not None:
+        return ob.waypoints
+    speed = float(np.hypot(ob.state[2], ob.state[3]))
+    course = float(np.arctan2(ob.state[3], ob.state[2]))
+    length = max(2.0 * speed * horizon, 1000.0)
+    p0 = ob.state[:2]
+    return np.stack([p0, p0 + length * np.array([np.cos(course), np.sin(course)])])
+
+
+def pack(situation: Situation, behaviours: np.ndarray, config, *, capacities: Capacities | None = None,
+         grid: DistanceGrid | None = None) -> SolveInputs:
+    """Validated host objects -> padded device inputs (dtype of ``config``), transferred in one call.
+
+    In ``grounding_mode="grid"`` the nearest-land distance grid of ``situation.polygons`` is used: pass it as
+    ``grid`` (:class:`~psbmpc_jax.planner.Planner` builds and caches it), otherwise it is built here."""
+    if not isinstance(situation, Situation):
+        raise ValueError(f"situation must be a psbmpc_jax.Situation, got {type(situation).__name__}")
+    caps = capacities or Capacities()
+    if not isinstance(caps, Capacities):
+        raise ValueError(f"capacities must be a psbmpc_jax.Capacities, got {type(caps).__name__}")
+    dtype = np.dtype(config.dtype)
+    own = situation.own_ship
+    n_w = len(own.waypoints)
+    w_cap = _capacity(caps.waypoints, n_w, bucket(n_w, 2), "waypoints")
+    own_w = np.zeros((1, w_cap, 2))
+    own_w[0, :n_w] = own.waypoints
+
+    obstacles = situation.obstacles
+    o_cap = _capacity(caps.obstacles, len(obstacles), bucket(len(obstacles), 1), "obstacles")
+    o_cap = max(o_cap, 1)
+    n_s = max([ob.n_ps for ob in obstacles], default=1)
+    s_cap = _capacity(caps.scenarios, n_s, bucket_scenarios(n_s), "scenarios")
+    routes = [_obstacle_route(ob, config.T) for ob in obstacles]
+    n_wo = max([len(r) for r in routes], default=2)
+    wo_cap = _capacity(caps.obstacle_waypoints, n_wo, bucket(n_wo, 2), "obstacle_waypoints")
+    obs_state = np.zeros((o_cap, 4))
+    obs_cov = np.tile(np.eye(4), (o_cap, 1, 1))
+    obs_length = np.ones(o_cap)
+    obs_w = np.zeros((o_cap, wo_cap, 2))
+    obs_w[:, 1, 0] = 1.0                                   # harmless default route for padding rows
+    obs_n = np.full(o_cap, 2, dtype=np.int32)
+    obs_n_ps = np.ones(o_cap, dtype=np.int32)
+    obs_probs = np.zeros((o_cap, s_cap))
+    obs_weight, obs_zeta = np.zeros(o_cap), np.zeros(o_cap)
+    obs_mask = np.zeros(o_cap, dtype=bool)
+    for i, (ob, route) in enumerate(zip(obstacles, routes)):
+        obs_state[i], obs_cov[i], obs_length[i] = ob.state, ob.cov, ob.length
+        obs_w[i, : len(route)], obs_n[i] = route, len(route)
+        obs_n_ps[i] = ob.n_ps
+        obs_probs[i, : ob.n_ps] = ob.probs
+        obs_weight[i], obs_zeta[i], obs_mask[i] = ob.weight, ob.zeta, True
+
+    polys = [ring_vertices(poly) for poly in situation.polygons]
+    p_cap = _capacity(caps.polygons, len(polys), bucket(len(polys), 0), "polygons")
+    n_v = max([len(v) for v, _ in polys], default=4)
+    v_cap = _capacity(caps.vertices, n_v, bucket(n_v, 4), "vertices")
+    v_cap = max(v_cap, 3)
+    poly_v = np.zeros((p_cap, v_cap, 2))
+    poly_next = np.tile((np.arange(v_cap) + 1) % 3, (p_cap, 1)).astype(np.int32)
+    poly_n = np.full(p_cap, 3, dtype=np.int32)
+    poly_mask = np.zeros(p_cap, dtype=bool)
+    for j, (verts, nxt) in enumerate(polys):   # rings back to back, each closing on itself
+        n = len(verts)
+        poly_v[j, :n], poly_next[j, :n], poly_next[j, n:] = verts, nxt, 0
+        poly_n[j], poly_mask[j] = n, True
+
+    behaviours = np.asarray(behaviours, dtype=float)
+    b = len(behaviours)
+    b_cap = _capacity(caps.behaviours, b, bucket_behaviours(b), "behaviours")
+    beh = np.concatenate([behaviours, np.repeat(behaviours[:1], b_cap - b, axis=0)])
+
+    if config.grounding_mode == "grid" and situation.polygons:
+        if grid is None:
+            grid = build_distance_grid(situation.polygons, config.grid_spacing, config.grid_margin, dtype=dtype)
+        grid_arrays = GridArrays(grid.values, np.asarray(grid.origin, dtype), np.asarray(grid.spacing, dtype),
+                                 np.asarray(grid.margin, dtype), np.asarray(True))
+    else:  # placeholder (exact mode, or no land at all)
+        grid_arrays = GridArrays(np.zeros((2, 2), dtype), np.zeros(2, dtype), np.asarray(1.0, dtype),
+                                 np.asarray(config.grid_margin, dtype), np.asarray(False))
+    f = lambda a: np.asarray(a, dtype)
+    i32 = lambda a: np.asarray(a, np.int32)
+    host = SolveInputs(
+        own=OwnShipArrays(f(own.state), f(own_w[..., 0]), f(own_w[..., 1]), i32([n_w]), f(own.U_d),
+                          f(own.length)),
+        obstacles=ObstacleArrays(f(obs_state), f(obs_cov), f(obs_length), f(obs_w[..., 0]), f(obs_w[..., 1]),
+                                 i32(obs_n), i32(obs_n_ps), f(obs_probs), f(obs_weight), f(obs_zeta), obs_mask),
+        world=WorldArrays(ChartArrays(f(poly_v), i32(poly_next), i32(poly_n), poly_mask), grid_arrays),
+        behaviours=BehaviourArrays(f(beh), np.arange(b_cap) < b),
+    )
+    return jax.device_put(host)
+
+
+# ------------------------------------------------------------------------------------------- batching
+#: Inputs every solve of one batch shares (one chart, one grid, one behaviour table): vmap broadcasts them
+#: (``in_axes=None``) instead of stacking a copy per solve (the Nidelva grid alone is ~16 MB).
+SHARED_AXES = SolveInputs(own=0, obstacles=0, world=None, behaviours=None)
+
+
+def stack(items) -> SolveInputs:
+    """Stack packed inputs along a new leading axis for ``vmap(..., in_axes=SHARED_AXES)``: waypoint
+    capacities are padded to the largest (padding waypoints never enter the guidance); the world and the
+    behaviour table are taken from the first item (their shapes must agree, as they do for all solves of
+    one MPC update)."""
+    items = list(items)
+    if not items:
+        raise ValueError("stack needs at least one packed input")
+    for part in ("world", "behaviours"):
+        shapes = {tuple(a.shape for a in jax.tree.leaves(getattr(x, part))) for x in items}
+        if len(shapes) > 1:
+            raise ValueError(f"stack: the inputs must share their {part} (chart, grid, behaviours), got "
+                             f"different shapes")
+    w_own = max(x.own.wx.shape[-1] for x in items)
+    w_obs = max(x.obstacles.wx.shape[-1] for x in items)
+
+    def widen(a, w):
+        return a if a.shape[-1] == w else jnp.pad(a, [(0, 0)] * (a.ndim - 1) + [(0, w - a.shape[-1])],
+                                                  mode="edge")
+
+    own = [x.own._replace(wx=widen(x.own.wx, w_own), wy=widen(x.own.wy, w_own)) for x in items]
+    obs = [x.obstacles._replace(wx=widen(x.obstacles.wx, w_obs), wy=widen(x.obstacles.wy, w_obs)) for x in items]
+    stack_ = lambda trees: jax.tree.map(lambda *a: jnp.stack(a), *trees)
+    return SolveInputs(stack_(own), stack_(obs), items[0].world, items[0].behaviours)
+
+
+def pad_behaviours(inputs: SolveInputs, multiple: int) -> SolveInputs:
+    """Pad the behaviour axis to a multiple of ``multiple`` with masked copies of behaviour 0."""
+    beh = np.asarray(inputs.behaviours.offsets)
+    mask = np.asarray(inputs.behaviours.mask)
+    n_pad = -beh.shape[0] % multiple
+    if n_pad:
+        beh = np.concatenate([beh, np.repeat(beh[:1], n_pad, axis=0)])
+        mask = np.concatenate([mask, np.zeros(n_pad, dtype=mask.dtype)])
+    return inputs._replace(behaviours=BehaviourArrays(jnp.asarray(beh, inputs.behaviours.offsets.dtype),
+                                                      jnp.asarray(mask)))
+
+
+
+
+# ------------------------------------------------------------------------------------------- unpacking
+class PlanResult:
+    """Result of one solve (NumPy, unpadded), fetched from the device lazily: the decision and the cost
+    table on construction, trajectories and per-scenario details on first access.
+
+    Attributes:
+        best_index: index of the chosen behaviour in the planner's behaviour table.
+        offsets: its maneuver sequence ``[n_M, 2]`` (speed factor, course offset rad).
+        u_opt, chi_opt: the first maneuver, to apply as U_c = u_opt U_d, chi_c = chi_opt + chi_d.
+        status: ``"ok"`` or why the plan is meaningless (``"no finite behaviour"``).
+        costs: per-behaviour cost terms ``{"total", <term names>} -> [B]`` (default terms: do, colregs, so,
+            path).
+        collision_cost, colregs_indicator: per obstacle ``[B, n_ps_i]`` arrays (C_s^{l,i}, mu_s^{l,i}).
+        grounding_per_polygon: ``[B, n_so]`` (``[B, 0]`` in grid mode, which only knows the nearest land).
+        own_trajectories: ``[B, N+1, 4]`` (x, y, chi, U); obstacle_trajectories: per obstacle
+            ``[n_ps_i, N+1, 4]``.
+        n_pc_blocks: (row, time-block) pairs evaluated by the collision-probability estimator.
+        solve_time_s: wall time of the device call (including the transfer of the cost table).
+        behaviours: the behaviour table ``[B, n_M, 2]``.
+    """
+
+    def __init__(self, ev, situation: Situation, behaviours: np.ndarray, solve_time: float, *,
+                 per_polygon: bool = True, status: str = "ok", names=None):
+        b = len(behaviours)
+        best, total, costs = jax.device_get((ev.best, ev.total, ev.costs))
+        self.best_index = int(best)
+        self.offsets = np.array(behaviours[self.best_index], dtype=float)   # exact host values
+        # pytrees sort dict keys: restore the terms' order ("total" first)
+        order = [n for n in (names or ("total", *costs)) if n != "total"]
+        self.costs = {"total": np.asarray(total, float)[:b]}
+        self.costs.update({k: np.asarray(costs[k], float)[:b] for k in order})
+        self.behaviours = behaviours
+        self.solve_time_s = solve_time
+        self.status = status
+        self._ev, self._situation, self._per_polygon, self._cache = ev, situation, per_polygon, {}
+
+    def __repr__(self) -> str:
+        return (f"PlanResult(best_index={self.best_index}, offsets={self.offsets.tolist()}, status={self.status!r}, "
+                f"total={self.costs['total'][self.best_index]:.6g}, solve_time_s={self.solve_time_s:.4f})")
+
+    def _get(self, name, build):
+        if name not in self._cache:
+            self._cache[name] = build()
+        return self._cache[name]
+
+    @property
+    def u_opt(self) -> float:
+        return float(self.offsets[0, 0])
+
+    @property
+    def chi_opt(self) -> float:
+        return float(self.offsets[0, 1])
+
+    @property
+    def n_pc_blocks(self) -> int:
+        return self._get("n_pc_blocks", lambda: int(self._ev.n_pc_blocks))
+
+    @property
+    def collision_cost(self) -> list:
+        b, obs = len(self.behaviours), self._situation.obstacles
+        return self._get("C", lambda: [np.asarray(self._ev.C[:b, i, : ob.n_ps], float) for i, ob in enumerate(obs)])
+
+    @property
+    def colregs_indicator(self) -> list:
+        b, obs = len(self.behaviours), self._situation.obstacles
+        return self._get("mu", lambda: [np.asarray(self._ev.mu[:b, i, : ob.n_ps], float) for i, ob in enumerate(obs)])
+
+    @property
+    def grounding_per_polygon(self) -> np.ndarray:
+        b, n_so = len(self.behaviours), len(self._situation.polygons)
+        return self._get("so_j", lambda: np.asarray(self._ev.so_j[:b, :n_so], float) if self._per_polygon
+                         else np.zeros((b, 0)))
+
+    @property
+    def own_trajectories(self) -> np.ndarray:
+        # device trajectories are time-major ([T, B]); results are row-major
+        def build():
+            own = jax.device_get(self._ev.own)
+            return np.stack([own.x, own.y, own.chi, own.U], axis=-1).swapaxes(0, 1)[: len(self.behaviours)] \
+                .astype(float)
+        return self._get("own", build)
+
+    @property
+    def obstacle_trajectories(self) -> list:
+        def build():
+            o = jax.device_get(self._ev.obstacles)
+            obs = np.moveaxis(np.stack([o.x, o.y, o.chi, o.U], axis=-1), 0, 2).astype(float)
+            return [obs[i, : ob.n_ps] for i, ob in enumerate(self._situation.obstacles)]
+        return self._get("obs", build)
+
+    def ranking(self, k: int = 5) -> list[dict]:
+        """The k cheapest behaviours with their cost breakdown (course offsets in degrees)."""
+        order = np.argsort(self.costs["total"], kind="stable")[:k]
+        rows = []
+        for b in order:
+            row = {"index": int(b),
+                   "maneuvers": [(float(u), float(np.rad2deg(c))) for u, c in self.behaviours[b]]}
+            row.update({term: float(v[b]) for term, v in self.costs.items()})
+            rows.append(row)
+        return rows
+
+
+def unpack(ev, situation: Situation, behaviours: np.ndarray, solve_time: float, per_polygon: bool = True,
+           status: str = "ok", names=None) -> PlanResult:
+    """Device output (padded :class:`~psbmpc_jax.evaluate.Evaluation`) -> host :class:`PlanResult`
+    (unpadded).  ``per_polygon=False`` (grid mode): there are no per-polygon grounding costs, ``costs["so"]``
+    is the cost of the nearest land.  ``names``: the cost columns in order (``("total",) + term names``)."""
+    return PlanResult(ev, situation, behaviours, solve_time, per_polygon=per_polygon, status=status, names=names)
+
+
+__all__ = ["SolveInputs", "OwnShipArrays", "ObstacleArrays", "WorldArrays", "ChartArrays", "GridArrays",
+           "BehaviourArrays", "Capacities", "pack", "stack", "pad_behaviours", "SHARED_AXES", "bucket",
+           "bucket_scenarios", "bucket_behaviours", "PlanResult", "unpack"]
