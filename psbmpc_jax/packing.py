@@ -147,12 +147,55 @@ def _obstacle_route(ob, horizon: float) -> np.ndarray:
     return np.stack([p0, p0 + length * np.array([np.cos(course), np.sin(course)])])
 
 
+def pack_world(polygons, config, capacities: Capacities | None = None,
+               grid: DistanceGrid | None = None) -> WorldArrays:
+    """The chart part of the inputs: padded polygons and, in grid mode, the distance grid (built here from
+    ``polygons`` unless given)."""
+    caps = capacities or Capacities()
+    dtype = np.dtype(config.dtype)
+    polys = [ring_vertices(poly) for poly in polygons]
+    p_cap = _capacity(caps.polygons, len(polys), bucket(len(polys), 0), "polygons")
+    n_v = max([len(v) for v, _ in polys], default=4)
+    v_cap = max(_capacity(caps.vertices, n_v, bucket(n_v, 4), "vertices"), 3)
+    poly_v = np.zeros((p_cap, v_cap, 2))
+    poly_next = np.tile((np.arange(v_cap) + 1) % 3, (p_cap, 1)).astype(np.int32)
+    poly_n = np.full(p_cap, 3, dtype=np.int32)
+    poly_mask = np.zeros(p_cap, dtype=bool)
+    for j, (verts, nxt) in enumerate(polys):   # rings back to back, each closing on itself
+        n = len(verts)
+        poly_v[j, :n], poly_next[j, :n], poly_next[j, n:] = verts, nxt, 0
+        poly_n[j], poly_mask[j] = n, True
+    if config.grounding_mode == "grid" and polys:
+        if grid is None:
+            grid = build_distance_grid(polygons, config.grid_spacing, config.grid_margin, dtype=dtype)
+        grid_arrays = GridArrays(grid.values, np.asarray(grid.origin, dtype), np.asarray(grid.spacing, dtype),
+                                 np.asarray(grid.margin, dtype), np.asarray(True))
+    else:  # placeholder (exact mode, or no land at all)
+        grid_arrays = GridArrays(np.zeros((2, 2), dtype), np.zeros(2, dtype), np.asarray(1.0, dtype),
+                                 np.asarray(config.grid_margin, dtype), np.asarray(False))
+    return WorldArrays(ChartArrays(poly_v.astype(dtype), poly_next, poly_n, poly_mask), grid_arrays)
+
+
+def pack_behaviours(behaviours, config, capacities: Capacities | None = None) -> BehaviourArrays:
+    """The behaviour table padded to its capacity with masked copies of behaviour 0."""
+    caps = capacities or Capacities()
+    behaviours = np.asarray(behaviours, dtype=float)
+    b = len(behaviours)
+    b_cap = _capacity(caps.behaviours, b, bucket_behaviours(b), "behaviours")
+    beh = np.concatenate([behaviours, np.repeat(behaviours[:1], b_cap - b, axis=0)])
+    return BehaviourArrays(beh.astype(np.dtype(config.dtype)), np.arange(b_cap) < b)
+
+
 def pack(situation: Situation, behaviours: np.ndarray, config, *, capacities: Capacities | None = None,
-         grid: DistanceGrid | None = None) -> SolveInputs:
-    """Validated host objects -> padded device inputs (dtype of ``config``), transferred in one call.
+         grid: DistanceGrid | None = None, world: WorldArrays | None = None,
+         behaviour_arrays: BehaviourArrays | None = None) -> SolveInputs:
+    """Validated host objects -> padded inputs (NumPy leaves of the dtype of ``config``; the distance grid stays
+    on the device), ready for the jitted :func:`~psbmpc_jax.solve.solve`.
 
     In ``grounding_mode="grid"`` the nearest-land distance grid of ``situation.polygons`` is used: pass it as
-    ``grid`` (:class:`~psbmpc_jax.planner.Planner` builds and caches it), otherwise it is built here."""
+    ``grid`` (:class:`~psbmpc_jax.planner.Planner` builds and caches it), otherwise it is built here.
+    ``world`` / ``behaviour_arrays``: already packed chart and table (:func:`pack_world`,
+    :func:`pack_behaviours`) to reuse — the planner caches them, they rarely change between solves."""
     if not isinstance(situation, Situation):
         raise ValueError(f"situation must be a psbmpc_jax.Situation, got {type(situation).__name__}")
     caps = capacities or Capacities()
@@ -166,8 +209,7 @@ def pack(situation: Situation, behaviours: np.ndarray, config, *, capacities: Ca
     own_w[0, :n_w] = own.waypoints
 
     obstacles = situation.obstacles
-    o_cap = _capacity(caps.obstacles, len(obstacles), bucket(len(obstacles), 1), "obstacles")
-    o_cap = max(o_cap, 1)
+    o_cap = max(_capacity(caps.obstacles, len(obstacles), bucket(len(obstacles), 1), "obstacles"), 1)
     n_s = max([ob.n_ps for ob in obstacles], default=1)
     s_cap = _capacity(caps.scenarios, n_s, bucket_scenarios(n_s), "scenarios")
     routes = [_obstacle_route(ob, config.T) for ob in obstacles]
@@ -190,44 +232,19 @@ def pack(situation: Situation, behaviours: np.ndarray, config, *, capacities: Ca
         obs_probs[i, : ob.n_ps] = ob.probs
         obs_weight[i], obs_zeta[i], obs_mask[i] = ob.weight, ob.zeta, True
 
-    polys = [ring_vertices(poly) for poly in situation.polygons]
-    p_cap = _capacity(caps.polygons, len(polys), bucket(len(polys), 0), "polygons")
-    n_v = max([len(v) for v, _ in polys], default=4)
-    v_cap = _capacity(caps.vertices, n_v, bucket(n_v, 4), "vertices")
-    v_cap = max(v_cap, 3)
-    poly_v = np.zeros((p_cap, v_cap, 2))
-    poly_next = np.tile((np.arange(v_cap) + 1) % 3, (p_cap, 1)).astype(np.int32)
-    poly_n = np.full(p_cap, 3, dtype=np.int32)
-    poly_mask = np.zeros(p_cap, dtype=bool)
-    for j, (verts, nxt) in enumerate(polys):   # rings back to back, each closing on itself
-        n = len(verts)
-        poly_v[j, :n], poly_next[j, :n], poly_next[j, n:] = verts, nxt, 0
-        poly_n[j], poly_mask[j] = n, True
-
-    behaviours = np.asarray(behaviours, dtype=float)
-    b = len(behaviours)
-    b_cap = _capacity(caps.behaviours, b, bucket_behaviours(b), "behaviours")
-    beh = np.concatenate([behaviours, np.repeat(behaviours[:1], b_cap - b, axis=0)])
-
-    if config.grounding_mode == "grid" and situation.polygons:
-        if grid is None:
-            grid = build_distance_grid(situation.polygons, config.grid_spacing, config.grid_margin, dtype=dtype)
-        grid_arrays = GridArrays(grid.values, np.asarray(grid.origin, dtype), np.asarray(grid.spacing, dtype),
-                                 np.asarray(grid.margin, dtype), np.asarray(True))
-    else:  # placeholder (exact mode, or no land at all)
-        grid_arrays = GridArrays(np.zeros((2, 2), dtype), np.zeros(2, dtype), np.asarray(1.0, dtype),
-                                 np.asarray(config.grid_margin, dtype), np.asarray(False))
     f = lambda a: np.asarray(a, dtype)
     i32 = lambda a: np.asarray(a, np.int32)
-    host = SolveInputs(
+    # host (NumPy) leaves: the jitted solve transfers them in its C++ dispatch path, much cheaper per array
+    # than a Python-side jax.device_put (measured in benchmarks/bench_solve.py)
+    return SolveInputs(
         own=OwnShipArrays(f(own.state), f(own_w[..., 0]), f(own_w[..., 1]), i32([n_w]), f(own.U_d),
                           f(own.length)),
         obstacles=ObstacleArrays(f(obs_state), f(obs_cov), f(obs_length), f(obs_w[..., 0]), f(obs_w[..., 1]),
                                  i32(obs_n), i32(obs_n_ps), f(obs_probs), f(obs_weight), f(obs_zeta), obs_mask),
-        world=WorldArrays(ChartArrays(f(poly_v), i32(poly_next), i32(poly_n), poly_mask), grid_arrays),
-        behaviours=BehaviourArrays(f(beh), np.arange(b_cap) < b),
+        world=world if world is not None else pack_world(situation.polygons, config, caps, grid),
+        behaviours=(behaviour_arrays if behaviour_arrays is not None
+                    else pack_behaviours(behaviours, config, caps)),
     )
-    return jax.device_put(host)
 
 
 # ------------------------------------------------------------------------------------------- batching
@@ -278,8 +295,8 @@ def pad_behaviours(inputs: SolveInputs, multiple: int) -> SolveInputs:
 
 # ------------------------------------------------------------------------------------------- unpacking
 class PlanResult:
-    """Result of one solve (NumPy, unpadded), fetched from the device lazily: the decision and the cost
-    table on construction, trajectories and per-scenario details on first access.
+    """Result of one solve (NumPy, unpadded), fetched from the device lazily: the decision on construction,
+    the cost table, trajectories and per-scenario details on first access (then kept).
 
     Attributes:
         best_index: index of the chosen behaviour in the planner's behaviour table.
@@ -299,14 +316,9 @@ class PlanResult:
 
     def __init__(self, ev, situation: Situation, behaviours: np.ndarray, solve_time: float, *,
                  per_polygon: bool = True, status: str = "ok", names=None):
-        b = len(behaviours)
-        best, total, costs = jax.device_get((ev.best, ev.total, ev.costs))
-        self.best_index = int(best)
+        self.best_index = int(ev.best)
         self.offsets = np.array(behaviours[self.best_index], dtype=float)   # exact host values
-        # pytrees sort dict keys: restore the terms' order ("total" first)
-        order = [n for n in (names or ("total", *costs)) if n != "total"]
-        self.costs = {"total": np.asarray(total, float)[:b]}
-        self.costs.update({k: np.asarray(costs[k], float)[:b] for k in order})
+        self._names = names
         self.behaviours = behaviours
         self.solve_time_s = solve_time
         self.status = status
@@ -314,12 +326,25 @@ class PlanResult:
 
     def __repr__(self) -> str:
         return (f"PlanResult(best_index={self.best_index}, offsets={self.offsets.tolist()}, status={self.status!r}, "
-                f"total={self.costs['total'][self.best_index]:.6g}, solve_time_s={self.solve_time_s:.4f})")
+                f"solve_time_s={self.solve_time_s:.4f})")
 
     def _get(self, name, build):
         if name not in self._cache:
             self._cache[name] = build()
         return self._cache[name]
+
+    @property
+    def costs(self) -> dict:
+        """Per-behaviour cost columns ``{"total", <term names>} -> [B]``, in the terms' order."""
+        def build():
+            b = len(self.behaviours)
+            total, costs = jax.device_get((self._ev.total, self._ev.costs))
+            # pytrees sort dict keys: restore the terms' order ("total" first)
+            order = [n for n in (self._names or ("total", *costs)) if n != "total"]
+            out = {"total": np.asarray(total, float)[:b]}
+            out.update({k: np.asarray(costs[k], float)[:b] for k in order})
+            return out
+        return self._get("costs", build)
 
     @property
     def u_opt(self) -> float:
@@ -387,5 +412,5 @@ def unpack(ev, situation: Situation, behaviours: np.ndarray, solve_time: float, 
 
 
 __all__ = ["SolveInputs", "OwnShipArrays", "ObstacleArrays", "WorldArrays", "ChartArrays", "GridArrays",
-           "BehaviourArrays", "Capacities", "pack", "stack", "pad_behaviours", "SHARED_AXES", "bucket",
+           "BehaviourArrays", "Capacities", "pack", "pack_world", "pack_behaviours", "stack", "pad_behaviours", "SHARED_AXES", "bucket",
            "bucket_scenarios", "bucket_behaviours", "PlanResult", "unpack"]

@@ -19,7 +19,7 @@ from .costs.base import check_terms, term_names
 from .costs.collision import standard_normal_table
 from .distance_grid import DistanceGrid, build_distance_grid, polygons_key, reach_region
 from .evaluate import DEFAULT_TERMS
-from .packing import Capacities, PlanResult, SolveInputs, pack, unpack
+from .packing import Capacities, PlanResult, SolveInputs, WorldArrays, pack, pack_behaviours, pack_world, unpack
 from .params import Params, PlannerConfig, params_as_arrays, validate_params
 from .problem import Situation
 from .solve import STATUS_NAMES, PlannerState, solve
@@ -61,6 +61,8 @@ class Planner:
         self.capacities = capacities
         self._grids: dict[str, DistanceGrid] = {}
         self._device_params: tuple | None = None      # (params object, its device arrays)
+        self._world: tuple | None = None              # (polygons content key, grid, packed world)
+        self._behaviour_arrays = pack_behaviours(self.behaviours, self.config, capacities)
 
     @property
     def cost_names(self) -> tuple[str, ...]:
@@ -83,6 +85,18 @@ class Planner:
                                                    region=region)
         return self._grids[key]
 
+    def _packed_world(self, situation: Situation) -> WorldArrays:
+        """The packed chart, reused while the situation carries the same polygons (content hash) and, in grid
+        mode, the same distance grid."""
+        grid = (self.distance_grid(situation)
+                if self.config.grounding_mode == "grid" and situation.polygons else None)
+        key = polygons_key(situation.polygons, 0.0, 0.0)
+        cached = self._world
+        if cached is None or cached[0] != key or cached[1] is not grid:
+            cached = (key, grid, pack_world(situation.polygons, self.config, self.capacities, grid))
+            self._world = cached
+        return cached[2]
+
     def init_state(self) -> PlannerState:
         return PlannerState()
 
@@ -97,13 +111,14 @@ class Planner:
     def prepare(self, situation: Situation, state: PlannerState | None = None, *, key=None,
                 params: Params | None = None) -> tuple[SolveInputs, PlannerState, Params, object]:
         """Validated device inputs ``(inputs, state, params, samples)`` for :func:`psbmpc_jax.solve.solve`."""
+        if not isinstance(situation, Situation):
+            raise ValueError(f"situation must be a psbmpc_jax.Situation, got {type(situation).__name__}")
         state = state or self.init_state()
         if not isinstance(state, PlannerState):
             raise ValueError(f"state must be a PlannerState, got {type(state).__name__}")
         p = self._params(params)
-        grid = (self.distance_grid(situation)
-                if self.config.grounding_mode == "grid" and situation.polygons else None)
-        inputs = pack(situation, self.behaviours, self.config, capacities=self.capacities, grid=grid)
+        inputs = pack(situation, self.behaviours, self.config, capacities=self.capacities,
+                      world=self._packed_world(situation), behaviour_arrays=self._behaviour_arrays)
         samples = standard_normal_table(key, self.config, np.dtype(self.config.dtype))
         return inputs, state, p, samples
 

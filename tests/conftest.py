@@ -231,8 +231,8 @@ def fixed_caps(monkeypatch):
 
     original = planner_mod.pack
 
-    def pack_fixed(situation, behaviours, config, *, capacities=None, grid=None):
-        return pad_arrays(original(situation, behaviours, config, capacities=capacities, grid=grid), **CAPS)
+    def pack_fixed(situation, behaviours, config, **kw):
+        return pad_arrays(original(situation, behaviours, config, **kw), **CAPS)
 
     monkeypatch.setattr(planner_mod, "pack", pack_fixed)
     return CAPS
