@@ -11,7 +11,7 @@ import statistics
 import jax
 import numpy as np
 
-from psbmpc_jax.bench import commit
+from psbmpc_jax.provenance import commit
 
 
 def jaxlib_version():

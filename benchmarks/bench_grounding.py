@@ -24,7 +24,7 @@ import jax
 
 from psbmpc_jax import OwnShip, Planner, PlannerConfig, Situation, paper_behaviours
 from psbmpc_jax.examples import nidelva_head_on, nidelva_polygons
-from psbmpc_jax.problem import polygon_rings
+from psbmpc_jax.situation import polygon_rings
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from _common import environment_meta, stats, time_compiled, write_results  # noqa: E402
@@ -33,9 +33,9 @@ from _common import environment_meta, stats, time_compiled, write_results  # noq
 def time_solve(situation, config: PlannerConfig, repeats: int, seed: int = 0) -> dict:
     planner = Planner(config, behaviours=paper_behaviours(2))
     t0 = time.perf_counter()
-    arrays, params, samples = planner.prepare(situation, key=jax.random.key(seed))
+    prepared = planner.prepare(situation, key=jax.random.key(seed))
     prepare_s = time.perf_counter() - t0            # includes the grid build in grid mode
-    compile_s, times, ev = time_compiled(arrays, params, samples, config, repeats, warmup=1)
+    compile_s, times, ev = time_compiled(prepared, config, repeats, warmup=1)
     n_edges = int(sum(len(r) for p in situation.polygons for r in polygon_rings(p)))
     return {"estimator": config.estimator, "grounding_mode": config.grounding_mode, "n_cbs": 1014,
             "n_do": len(situation.obstacles), "n_so": len(situation.polygons), "n_edges": n_edges,

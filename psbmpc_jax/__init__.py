@@ -17,7 +17,7 @@ from .objective import objective
 from .packing import Capacities, PlanResult, SolveInputs, pack
 from .params import Params, PlannerConfig
 from .planner import Planner
-from .problem import Obstacle, OwnShip, Situation
+from .situation import Obstacle, OwnShip, Situation
 from .sharding import solve_sharded
 from .solve import Plan, PlannerState, solve
 

@@ -72,7 +72,6 @@ import os
 import platform as _platform
 import resource
 import statistics
-import subprocess
 import sys
 import time
 from dataclasses import dataclass, replace
@@ -81,6 +80,7 @@ from functools import lru_cache
 import numpy as np
 
 from .argtypes import nonneg_float, nonneg_int, odd_int, positive_float, positive_int
+from .provenance import commit, versions
 
 SCHEMA = "psbmpc-bench/1"
 SWEEPS = ("n_cbs", "n_ps", "n_do", "n_so", "n_vertices")
@@ -106,30 +106,6 @@ SCHEDULES = ("interleaved", "sequential")
 
 
 # ----------------------------------------------------------------------------------------------- metadata
-def commit() -> str:
-    here = os.path.dirname(os.path.abspath(__file__))
-    try:
-        out = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, check=True, cwd=here)
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], capture_output=True,
-                               text=True, cwd=here).stdout.strip()
-        return out.stdout.strip() + ("-dirty" if dirty else "")
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
-
-
-def versions() -> dict:
-    import jax
-
-    try:
-        import jaxlib
-
-        jaxlib_v = jaxlib.__version__
-    except (ImportError, AttributeError):
-        jaxlib_v = "unknown"
-    return {"python": _platform.python_version(), "jax": jax.__version__, "jaxlib": jaxlib_v,
-            "numpy": np.__version__}
-
-
 def stats_ms(times_s) -> dict:
     if not times_s:
         return {"times_ms": [], "median_ms": None, "min_ms": None, "max_ms": None, "q1_ms": None, "q3_ms": None}
@@ -223,7 +199,7 @@ def _nidelva(eps: float, n_ps: int, rdp: bool):
 
 def _situation(p: Point):
     from .examples import nidelva_polygons
-    from .problem import Obstacle, OwnShip, Situation
+    from .situation import Obstacle, OwnShip, Situation
 
     rdp = p.eps > 0
     eps = p.eps if rdp else 2.0
@@ -251,7 +227,7 @@ def _situation(p: Point):
 
 
 def n_vertices(situation) -> int:
-    from .problem import polygon_rings
+    from .situation import polygon_rings
 
     return int(sum(sum(len(r) for r in polygon_rings(poly)) for poly in situation.polygons))
 

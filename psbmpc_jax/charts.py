@@ -386,14 +386,14 @@ def _clean_ring(arr: np.ndarray) -> tuple[np.ndarray, int]:
     return arr, n0 - len(arr)
 
 
-def _areal_parts(geom) -> tuple[list[Polygon], int]:
+def areal_parts(geom) -> tuple[list[Polygon], int]:
     """Polygon parts of a geometry (after repair / intersection) and the number of other parts dropped."""
     parts, dropped = [], 0
     for g in shapely.get_parts(geom):
         if isinstance(g, Polygon) and not g.is_empty and g.area > 0.0:
             parts.append(g)
         elif isinstance(g, (MultiPolygon, shapely.GeometryCollection)):
-            p, d = _areal_parts(g)
+            p, d = areal_parts(g)
             parts += p
             dropped += d
         else:
@@ -503,7 +503,7 @@ def _build_chart(raws: list[_Raw], info: CRSInfo, *, origin, zone, source: str, 
             parts = [poly]
         else:
             rep["n_repaired"] += 1
-            parts, dropped = _areal_parts(_make_valid(poly))
+            parts, dropped = areal_parts(_make_valid(poly))
             rep["n_dropped_parts"] += dropped
             if not parts:
                 raise ValueError(f"{where}: {label} is degenerate: zero area (collinear or collapsed vertices)")
@@ -961,7 +961,7 @@ def range_filter(chart: Chart, position, d_so: float, *, mode: str = "clip", n_a
         if mode == "whole" or shapely.hausdorff_distance(pt, p.exterior) <= d_so:
             parts = [p]
         else:
-            parts, d = _areal_parts(p.intersection(clip))
+            parts, d = areal_parts(p.intersection(clip))
             dropped += d
             clipped += 1
         for q in parts:

@@ -24,8 +24,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .costs.grounding import edge_table, polygon_distance
-from .problem import polygon_rings, ring_vertices
+from .geometry import edge_table, polygon_distance
+from .situation import polygon_rings, ring_vertices
 
 
 class DistanceGrid(NamedTuple):
@@ -55,7 +55,7 @@ def _edge_tables(polygons, dtype):
 def _tile_distance(px, py, tables, counts):
     """Distance to the nearest polygon, each polygon with its own even-odd rule (overlaps are fine)."""
     def one(dmin, tc):
-        d, _, _ = polygon_distance(px, py, tc[0], tc[1])
+        d, _, _ = polygon_distance(px, py, tc[0], tc[1], with_direction=False)
         return jnp.minimum(dmin, d), None
     big = jnp.full(px.shape, jnp.finfo(px.dtype).max, px.dtype)
     return jax.lax.scan(one, big, (tables, counts))[0]

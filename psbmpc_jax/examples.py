@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .problem import Obstacle, OwnShip, Situation
+from .situation import Obstacle, OwnShip, Situation
 
 
 def paper_head_on(n_ps: int = 5, n_obstacles: int = 2) -> Situation:

@@ -1,10 +1,12 @@
-"""Small numerical helpers shared by the device kernels (pure jax.numpy)."""
+"""Small numerical helpers shared by the device kernels (pure jax.numpy), and the host (NumPy float64) twin
+of :func:`wrap_angle` that the closed-loop simulator steps and measures with."""
 
 from __future__ import annotations
 
 import math
 
 import jax.numpy as jnp
+import numpy as np
 from jax.scipy.special import ndtr
 
 TWO_PI = 2.0 * math.pi
@@ -13,6 +15,16 @@ TWO_PI = 2.0 * math.pi
 def wrap_angle(a):
     """Wrap angles to [-pi, pi)."""
     return a - TWO_PI * jnp.floor((a + math.pi) / TWO_PI)
+
+
+def wrap_angle_host(a):
+    """Wrap angles to [-pi, pi) on the host, in float64: ``(a + pi) mod 2 pi - pi``.
+
+    A Python float for a Python number, else a NumPy array (never a JAX array, whatever the JAX dtype
+    settings); it agrees with :func:`wrap_angle` to a few ulp (floor and mod round differently)."""
+    if isinstance(a, (float, int)) and not isinstance(a, bool):
+        return (float(a) + math.pi) % TWO_PI - math.pi
+    return np.mod(np.asarray(a, dtype=float) + math.pi, TWO_PI) - math.pi
 
 
 def normal_cdf(x):

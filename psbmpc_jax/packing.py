@@ -27,7 +27,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .distance_grid import DistanceGrid, build_distance_grid
-from .problem import Situation, ring_vertices
+from .situation import Situation, ring_vertices
 
 
 # ------------------------------------------------------------------------------------------- device types

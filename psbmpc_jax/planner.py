@@ -21,7 +21,7 @@ from .distance_grid import DistanceGrid, build_distance_grid, polygons_key, reac
 from .evaluate import DEFAULT_TERMS
 from .packing import Capacities, PlanResult, SolveInputs, WorldArrays, pack, pack_behaviours, pack_world, unpack
 from .params import Params, PlannerConfig, params_as_arrays, validate_params
-from .problem import Situation
+from .situation import Situation
 from .solve import STATUS_NAMES, PlannerState, solve
 
 #: Cost columns of the default terms.

@@ -26,7 +26,7 @@ import numpy as np
 
 from .behaviours import validate_behaviours
 from .params import ESTIMATORS, Params, PlannerConfig, validate_params
-from .problem import Obstacle, OwnShip, Situation
+from .situation import Obstacle, OwnShip, Situation
 
 __all__ = [
     "ReferenceResult",

@@ -26,7 +26,8 @@ import shapely.validation
 import yaml
 from shapely.geometry import LineString, Point, Polygon
 
-from .charts import BUILTIN_CHARTS, count_vertices
+from .charts import BUILTIN_CHARTS, areal_parts, count_vertices, load_chart, to_ring_sets
+from .checks import integer, multiple_of
 from .params import Params, PlannerConfig
 
 COLAV_MODES = ("none", "psbmpc")
@@ -167,9 +168,6 @@ SCENARIO_DIR = pathlib.Path(__file__).resolve().parent / "scenarios"
 #: Minimum length of a default (straight) route [m].
 DEFAULT_ROUTE_MIN_M = 1000.0
 
-#: Tolerance of the "is a multiple of the simulation step" checks (relative to the number of steps).
-MULTIPLE_TOL = 1e-9
-
 #: Quarter-circle segments of the buffer that ``chart.clip_m`` intersects the land with.
 CLIP_QUAD_SEGS = 16
 
@@ -229,12 +227,6 @@ def _number(v, where: str, *, gt=None, ge=None, le=None) -> float:
     return x
 
 
-def _integer(v, where: str, *, ge: int) -> int:
-    if isinstance(v, bool) or not isinstance(v, numbers.Integral) or v < ge:
-        raise ValueError(f"{where} must be an integer >= {ge}, got {v!r}")
-    return int(v)
-
-
 def _string(v, where: str) -> str:
     if not isinstance(v, str) or not v.strip():
         raise ValueError(f"{where} must be a non-empty string, got {v!r}")
@@ -251,14 +243,6 @@ def _one_of(d: dict, keys, where: str, *, required: bool) -> str | None:
             raise ValueError(f"{where}: missing required key, one of {' / '.join(keys)}")
         return None
     return present[0]
-
-
-def _multiple_of(value: float, step: float, what: str, step_what: str) -> int:
-    n = value / step
-    k = round(n)
-    if k < 1 or abs(n - k) > MULTIPLE_TOL * max(1.0, abs(n)):
-        raise ValueError(f"{what} ({value:g}) must be a multiple of {step_what} ({step:g})")
-    return int(k)
 
 
 def _point(v, where: str) -> np.ndarray:
@@ -354,15 +338,15 @@ def _simulation(d) -> tuple[float, float]:
     _check_keys(d, _SIM_KEYS, "simulation", required=_SIM_KEYS)
     dt = _number(d["dt_s"], "simulation.dt_s", gt=0)
     duration = _number(d["duration_s"], "simulation.duration_s", gt=0)
-    _multiple_of(duration, dt, "simulation.duration_s", "simulation.dt_s")
+    multiple_of(duration, dt, "simulation.duration_s", "simulation.dt_s")
     return dt, duration
 
 
 def _monte_carlo(d) -> tuple[int, int]:
     d = _mapping(d, "monte_carlo")
     _check_keys(d, _MC_KEYS, "monte_carlo")
-    runs = _integer(d.get("runs", 20), "monte_carlo.runs", ge=1)
-    seed = _integer(d.get("seed", 0), "monte_carlo.seed", ge=0)
+    runs = integer(d.get("runs", 20), "monte_carlo.runs", ge=1)
+    seed = integer(d.get("seed", 0), "monte_carlo.seed", ge=0)
     return runs, seed
 
 
@@ -387,7 +371,7 @@ def _mpc(d, dt: float) -> MPCSpec:
     if not isinstance(preset, str) or preset not in PRESETS:
         raise ValueError(f"mpc.preset must be one of {sorted(PRESETS)}, got {preset!r}")
     period = _number(d["update_period_s"], "mpc.update_period_s", gt=0)
-    _multiple_of(period, dt, "mpc.update_period_s", "simulation.dt_s")
+    multiple_of(period, dt, "mpc.update_period_s", "simulation.dt_s")
     n_ps = d.get("n_ps", PRESETS[preset].n_ps)
     if isinstance(n_ps, bool) or not isinstance(n_ps, numbers.Integral) or n_ps < 1 or n_ps % 2 == 0:
         raise ValueError(f"mpc.n_ps must be an odd integer >= 1, got {n_ps!r}")
@@ -433,8 +417,8 @@ def _sensor(d, dt: float) -> SensorSpec:
         kw["position_std"] = _number(d["position_std_m"], "sensor.position_std_m", gt=0)
     if "period_s" in d:
         kw["period"] = _number(d["period_s"], "sensor.period_s", gt=0)
-    _multiple_of(kw.get("period", base.period), dt,
-                 "sensor.period_s" if "period" in kw else "sensor.period_s (not given: the default)", "simulation.dt_s")
+    multiple_of(kw.get("period", base.period), dt,
+                "sensor.period_s" if "period" in kw else "sensor.period_s (not given: the default)", "simulation.dt_s")
     if "filter_R_scale" in d:
         kw["filter_R_scale"] = _number(d["filter_R_scale"], "sensor.filter_R_scale", ge=1)
     if "sigma_a_mps2" in d:
@@ -456,8 +440,6 @@ def _sensor(d, dt: float) -> SensorSpec:
 # ---------------------------------------------------------------------------------------------- charts
 @lru_cache(maxsize=8)
 def _builtin_chart(name: str, origin, zone):
-    from .charts import load_chart
-
     return load_chart(name, origin, zone=zone)
 
 
@@ -525,8 +507,6 @@ def _chart_source(d, base_dir):
             raise ValueError(f"chart.builtin {name!r}: {exc}") from None
         source = f"builtin:{name.lower()} ({chart.source})"
     else:
-        from .charts import load_chart
-
         f = d["file"]
         if not isinstance(f, str) or not f.strip():
             raise ValueError(f"chart.file must be a path (relative to the scenario file), got {f!r}")
@@ -555,8 +535,6 @@ def route_geometry(ship: ShipSpec):
 
 def _clip(polys: list[Polygon], ships, clip_m: float) -> tuple[list[Polygon], dict]:
     """Keep the land within ``clip_m`` of every ship's start and route (shapely buffer, CLIP_QUAD_SEGS)."""
-    from .charts import _areal_parts
-
     region = shapely.union_all([route_geometry(s).buffer(clip_m, quad_segs=CLIP_QUAD_SEGS) for s in ships])
     shapely.prepare(region)
     out, removed, clipped, dropped = [], 0, 0, 0
@@ -567,7 +545,7 @@ def _clip(polys: list[Polygon], ships, clip_m: float) -> tuple[list[Polygon], di
         if region.contains(p):
             out.append(p)
             continue
-        parts, k = _areal_parts(p.intersection(region))
+        parts, k = areal_parts(p.intersection(region))
         clipped += 1
         dropped += k
         if not parts:
@@ -727,7 +705,6 @@ def scenario_from_dict(data: dict, base_dir=None, source: str | None = None) -> 
     if clip is not None:
         polys, clip_info = _clip(polys, (own,) + targets, clip)
         info.update(clip_info)
-    from .charts import to_ring_sets
 
     rings = tuple(tuple(np.asarray(r, dtype=float) for r in rs) for rs in to_ring_sets(polys)) if polys else ()
     info.update(rdp_eps_m=rdp_eps, clip_m=clip, n_polygons=len(rings),

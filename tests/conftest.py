@@ -19,7 +19,7 @@ import pytest  # noqa: E402
 from psbmpc_jax.behaviours import enumerate_behaviours_deg  # noqa: E402
 from psbmpc_jax.packing import (BehaviourArrays, ChartArrays, ObstacleArrays, OwnShipArrays,  # noqa: E402
                                 SolveInputs, WorldArrays)
-from psbmpc_jax.problem import Obstacle, OwnShip, Situation  # noqa: E402
+from psbmpc_jax.situation import Obstacle, OwnShip, Situation  # noqa: E402
 
 
 def pytest_configure(config):

@@ -20,7 +20,7 @@ from psbmpc_jax import Obstacle, OwnShip, Params, PlannerConfig, Planner, Situat
 from psbmpc_jax import reference as ref_mod
 from psbmpc_jax.costs.grounding import edge_table, polygon_distance
 from psbmpc_jax.packing import pack
-from psbmpc_jax.problem import ring_vertices
+from psbmpc_jax.situation import ring_vertices
 
 
 def star(rng, n, cx, cy, r_min, r_max):

@@ -10,7 +10,7 @@ from shapely.geometry import Point, Polygon
 
 from psbmpc_jax.behaviours import paper_behaviours
 from psbmpc_jax.params import Params, PlannerConfig
-from psbmpc_jax.problem import Obstacle, OwnShip, Situation
+from psbmpc_jax.situation import Obstacle, OwnShip, Situation
 from psbmpc_jax.reference import (
     ReferenceResult,
     colregs_violation,

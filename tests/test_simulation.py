@@ -91,7 +91,7 @@ def test_vmap_batch_equals_loop():
 def test_stack_pads_waypoints():
     from psbmpc_jax.packing import stack
     from psbmpc_jax.planner import Planner
-    from psbmpc_jax.problem import OwnShip, Situation
+    from psbmpc_jax.situation import OwnShip, Situation
 
     pl = Planner()
     s2 = Situation(OwnShip([0, 0, 0, 2], [[0, 0], [100, 0]], 2.0))

@@ -25,8 +25,8 @@ from collections.abc import Sequence
 import numpy as np
 import shapely
 
-from ..reference import wrap_angle
-from ..problem import _positive, _waypoints
+from ..checks import positive, waypoints
+from ..numerics import wrap_angle_host
 
 __all__ = [
     "HEAD_ON_SECTOR_DEG",
@@ -128,8 +128,8 @@ def relative_bearings(own_state, target_state):
     target_state = np.asarray(target_state, dtype=float)
     dn = target_state[..., 0] - own_state[..., 0]
     de = target_state[..., 1] - own_state[..., 1]
-    beta = wrap_angle(np.arctan2(de, dn) - own_state[..., 2])
-    alpha = wrap_angle(np.arctan2(-de, -dn) - target_state[..., 2])
+    beta = wrap_angle_host(np.arctan2(de, dn) - own_state[..., 2])
+    alpha = wrap_angle_host(np.arctan2(-de, -dn) - target_state[..., 2])
     return beta, alpha
 
 
@@ -187,7 +187,7 @@ def encounter_type(t, own, target, range_m):
     own = _check_traj(own, "own", t.size)
     target = _check_traj(target, "target", t.size)
     if range_m is not None:
-        range_m = _positive(range_m, "range_m")
+        range_m = positive(range_m, "range_m")
     k = _classification_index(_ranges(own, target), range_m)
     if k is None:
         return "none", float("nan")
@@ -208,7 +208,7 @@ def _segment_distances(points: np.ndarray, route: np.ndarray) -> np.ndarray:
 def cross_track_deviation(points, route):
     """Distance [m] from each point ``[K, 2]`` (north, east) to the route polyline ``[m, 2]``: ``[K]``."""
     points = _array(points, "points", "[K, 2] (north, east)", 2, 2)
-    route = _waypoints(route, "route", 2)
+    route = waypoints(route, "route", 2)
     if points.shape[0] == 0:
         return np.zeros(0)
     return _segment_distances(points, route).min(axis=1)
@@ -260,7 +260,7 @@ def maneuver_compliance(t, own, target, encounter, route, *, d_collision=None):
     t = _check_t(t)
     own = _check_traj(own, "own", t.size)
     target = _check_traj(target, "target", t.size)
-    route = _waypoints(route, "route", 2)
+    route = waypoints(route, "route", 2)
     if isinstance(encounter, (tuple, list)):
         if len(encounter) != 2:
             raise ValueError(f"encounter must be a type string or a (type, t_classified) pair, got {encounter!r}")
@@ -271,7 +271,7 @@ def maneuver_compliance(t, own, target, encounter, route, *, d_collision=None):
     if enc not in allowed:
         raise ValueError(f"encounter type must be one of {allowed}, got {enc!r}")
     if d_collision is not None:
-        d_collision = _positive(d_collision, "d_collision")
+        d_collision = positive(d_collision, "d_collision")
     empty = {"compliant": None, "encounter": enc, "t_classified": None, "t_cpa": None, "passing_side": None,
              "passed_astern": None, "max_starboard_deviation_deg": None, "max_port_deviation_deg": None,
              "min_speed_ratio": None, "min_distance_m": None, "first_alteration": None}
@@ -285,7 +285,7 @@ def maneuver_compliance(t, own, target, encounter, route, *, d_collision=None):
     d = _ranges(own, target)
     k_cpa = k0 + int(np.argmin(d[k0:]))
     win = slice(k0, k_cpa + 1)
-    dev = np.degrees(wrap_angle(own[win, 2] - _leg_courses(own[win, :2], route)))
+    dev = np.degrees(wrap_angle_host(own[win, 2] - _leg_courses(own[win, :2], route)))
     max_stbd = float(max(0.0, dev.max()))
     max_port = float(max(0.0, -dev.min()))
     u0 = own[k0, 3]
@@ -409,7 +409,7 @@ def course_rate(t, chi):
     chi = _array(chi, "chi", "[K]", 1, None)
     if chi.shape != t.shape:
         raise ValueError(f"chi must have the shape of t {t.shape}, got {chi.shape}")
-    return wrap_angle(np.diff(chi)) / np.diff(t)
+    return wrap_angle_host(np.diff(chi)) / np.diff(t)
 
 
 # ------------------------------------------------------------------------------------------------ per run
@@ -452,11 +452,11 @@ def run_metrics(t, own, targets, route, polygons, *, d_collision, ground_clearan
         raise ValueError(f"targets must have shape [n, K={K}, 4] with rows (north, east, chi, U), got {tg.shape}")
     if not np.all(np.isfinite(tg)):
         raise ValueError("targets must be finite (no NaN/inf)")
-    route = _waypoints(route, "route", 2)
-    d_collision = _positive(d_collision, "d_collision")
-    ground_clearance = _positive(ground_clearance, "ground_clearance", allow_zero=True)
+    route = waypoints(route, "route", 2)
+    d_collision = positive(d_collision, "d_collision")
+    ground_clearance = positive(ground_clearance, "ground_clearance", allow_zero=True)
     if classify_range is not None:
-        classify_range = _positive(classify_range, "classify_range")
+        classify_range = positive(classify_range, "classify_range")
     n = tg.shape[0]
     if target_names is None:
         names = [f"target_{i}" for i in range(n)]

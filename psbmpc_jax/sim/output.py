@@ -10,6 +10,8 @@ import pathlib
 
 import numpy as np
 
+from ..provenance import commit, versions
+
 SCHEMA = "psbmpc-sim/1"
 
 
@@ -49,8 +51,6 @@ def scenario_info(sc) -> dict:
 
 
 def provenance() -> dict:
-    from ..bench import commit, versions
-
     return {"created_utc": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
             "commit": commit(), "versions": versions()}
 

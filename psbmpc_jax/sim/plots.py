@@ -10,7 +10,7 @@ import pathlib
 import numpy as np
 
 from ..plots import land_patch
-from ..problem import polygon_rings
+from ..situation import polygon_rings
 
 SHIP_COLORS = ("tab:red", "tab:green", "tab:blue", "tab:purple", "black", "tab:orange", "tab:brown", "tab:cyan")
 

@@ -27,6 +27,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..checks import integer, multiple_of
 from ..costs.base import term_names
 from ..costs.collision import standard_normal_table
 from ..distance_grid import build_distance_grid
@@ -34,9 +35,9 @@ from ..evaluate import DEFAULT_TERMS
 from ..packing import SHARED_AXES, pack, stack, unpack
 from ..params import params_as_arrays
 from ..planner import check_dtype
-from ..problem import Obstacle, OwnShip, Situation
+from ..situation import Obstacle, OwnShip, Situation
 from ..solve import Plan, PlannerState, solve, solve_arrays
-from ..scenario import Scenario, _integer, _multiple_of
+from ..scenario import Scenario, route_geometry
 from . import metrics as metrics_mod
 from .tracker import TrackerBank
 from .vessel import extend_route, kinematic_step, los_course, nominal_speed, pad_routes
@@ -181,9 +182,9 @@ class _ClosedLoop:
         mpc, sensor, config = scenario.mpc, scenario.sensor, scenario.mpc.config
         dt = scenario.dt
         # scenarios built in code skip the loader's checks: the same check again, by the loader's helper
-        self.K = _multiple_of(scenario.duration, dt, "duration", "the simulation step dt")
-        self.mpc_every = _multiple_of(mpc.period, dt, "mpc.period", "the simulation step dt")
-        self.meas_every = _multiple_of(sensor.period, dt, "sensor.period", "the simulation step dt")
+        self.K = multiple_of(scenario.duration, dt, "duration", "the simulation step dt")
+        self.mpc_every = multiple_of(mpc.period, dt, "mpc.period", "the simulation step dt")
+        self.meas_every = multiple_of(sensor.period, dt, "sensor.period", "the simulation step dt")
         ships = self.ships = scenario.ships
         n, self.n_tg = len(ships), len(ships) - 1
         self.routes_ext, self.n_wp = pad_routes([extend_route(s.waypoints) for s in ships])
@@ -316,8 +317,6 @@ class _ClosedLoop:
             return None
         import shapely
 
-        from ..scenario import route_geometry
-
         routes = shapely.union_all([route_geometry(s) for s in self.ships])
         xy = self.states[..., :2].reshape(-1, 2)
         far = float(np.max(shapely.distance(routes, shapely.points(xy))))
@@ -345,8 +344,8 @@ def simulate(scenario: Scenario, *, runs: int | None = None, seed: int | None = 
     """
     if not isinstance(scenario, Scenario):
         raise ValueError(f"scenario must be a psbmpc_jax.scenario.Scenario, got {type(scenario).__name__}")
-    runs = _integer(scenario.runs if runs is None else runs, "runs", ge=1)
-    seed = _integer(scenario.seed if seed is None else seed, "seed", ge=0)
+    runs = integer(scenario.runs if runs is None else runs, "runs", ge=1)
+    seed = integer(scenario.seed if seed is None else seed, "seed", ge=0)
     if not 0 <= snapshot_run < runs:
         raise ValueError(f"snapshot_run must be in [0, {runs}), got {snapshot_run}")
     mode = resolve_batch_mode(batch)

@@ -32,7 +32,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..problem import _positive
+from ..checks import positive
 
 __all__ = [
     "CONSERVATIVE_R_FACTOR",
@@ -96,8 +96,8 @@ def cv_model(dt, sigma_a):
     Returns:
         ``(F [4, 4], Q [4, 4])``.
     """
-    dt = _positive(dt, "dt")
-    sigma_a = _positive(sigma_a, "sigma_a", allow_zero=True)
+    dt = positive(dt, "dt")
+    sigma_a = positive(sigma_a, "sigma_a", allow_zero=True)
     F = np.eye(4)
     F[0, 2] = F[1, 3] = dt
     q = sigma_a ** 2
@@ -124,8 +124,8 @@ def initiate(z, R, U_max, kappa=DEFAULT_KAPPA):
     z = _as_array(z, "z", (2,))
     R = _as_array(R, "R", (2, 2))
     _check_covariance(R, "R")
-    U_max = _positive(U_max, "U_max")
-    kappa = _positive(kappa, "kappa")
+    U_max = positive(U_max, "U_max")
+    kappa = positive(kappa, "kappa")
     batch = np.broadcast_shapes(z.shape[:-1], R.shape[:-2])
     x = np.zeros(batch + (4,))
     x[..., :2] = z
@@ -260,16 +260,16 @@ class TrackerBank:
         _check_covariance(R, "R_filter")
         self.batch_shape = shape
         self.R = R
-        self.sigma_a = _positive(sigma_a, "sigma_a", allow_zero=True)
-        self.U_max = _positive(U_max, "U_max")
-        self.kappa = _positive(kappa, "kappa")
+        self.sigma_a = positive(sigma_a, "sigma_a", allow_zero=True)
+        self.U_max = positive(U_max, "U_max")
+        self.kappa = positive(kappa, "kappa")
         self.initiated = np.zeros(shape, dtype=bool)
         self.x = np.full(shape + (4,), np.nan)
         self.P = np.full(shape + (4, 4), np.nan)
 
     def step(self, dt):
         """Predict every initiated track over ``dt`` seconds (> 0)."""
-        dt = _positive(dt, "dt")
+        dt = positive(dt, "dt")
         sel = self.initiated
         if np.any(sel):
             self.x[sel], self.P[sel] = predict(self.x[sel], self.P[sel], dt, self.sigma_a)

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..reference import wrap_angle as wrap
+from ..numerics import wrap_angle_host as wrap
 
 #: How far the simulator extends every route beyond its last waypoint, along the last leg [m]: ships keep
 #: the last leg's course after their route ends (SPEC §2), and the planner sees the same extended line.

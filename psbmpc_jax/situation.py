@@ -20,37 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-
-def _array(value, name: str, shape: tuple | None = None, *, ndim: int | None = None) -> np.ndarray:
-    try:
-        arr = np.array(value, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be numeric, got {value!r}") from exc
-    if shape is not None and arr.shape != shape:
-        raise ValueError(f"{name} must have shape {shape}, got {arr.shape}")
-    if ndim is not None and arr.ndim != ndim:
-        raise ValueError(f"{name} must be a {ndim}-d array, got shape {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} must be finite (no NaN/inf), got {arr.tolist()}")
-    return arr
-
-
-def _positive(value, name: str, *, allow_zero: bool = False) -> float:
-    v = _array(value, name, ())
-    if v < 0 or (v == 0 and not allow_zero):
-        raise ValueError(f"{name} must be {'>= 0' if allow_zero else '> 0'}, got {float(v)}")
-    return float(v)
-
-
-def _waypoints(value, name: str, min_points: int) -> np.ndarray:
-    wps = _array(value, name)
-    if wps.ndim != 2 or wps.shape[1] != 2:
-        raise ValueError(f"{name} must have shape [n, 2] (north, east), got {wps.shape}")
-    if wps.shape[0] < min_points:
-        raise ValueError(f"{name} needs at least {min_points} waypoints, got {wps.shape[0]}")
-    if wps.shape[0] >= 2 and np.any(np.linalg.norm(np.diff(wps, axis=0), axis=1) == 0):
-        raise ValueError(f"{name} has repeated consecutive waypoints (zero-length segment)")
-    return wps
+from . import checks
 
 
 def _check_psd(P: np.ndarray, name: str) -> None:
@@ -62,7 +32,7 @@ def _check_psd(P: np.ndarray, name: str) -> None:
 
 
 def _ring(value, name: str) -> np.ndarray:
-    arr = _array(value, name)
+    arr = checks.finite_array(value, name)
     if arr.ndim != 2 or arr.shape[1] != 2 or arr.shape[0] < 3:
         raise ValueError(f"{name} must be a ring of shape [n >= 3, 2] (north, east), got {arr.shape}")
     return arr
@@ -103,14 +73,14 @@ class OwnShip:
     width: float = 3.0
 
     def __post_init__(self) -> None:
-        state = _array(self.state, "own_ship.state", (4,))
+        state = checks.finite_array(self.state, "own_ship.state", (4,))
         if state[3] < 0:
             raise ValueError(f"own_ship.state speed U must be >= 0 m/s, got {state[3]}")
         object.__setattr__(self, "state", state)
-        object.__setattr__(self, "waypoints", _waypoints(self.waypoints, "own_ship.waypoints", 2))
-        object.__setattr__(self, "U_d", _positive(self.U_d, "own_ship.U_d", allow_zero=True))
-        object.__setattr__(self, "length", _positive(self.length, "own_ship.length"))
-        object.__setattr__(self, "width", _positive(self.width, "own_ship.width"))
+        object.__setattr__(self, "waypoints", checks.waypoints(self.waypoints, "own_ship.waypoints", 2))
+        object.__setattr__(self, "U_d", checks.positive(self.U_d, "own_ship.U_d", allow_zero=True))
+        object.__setattr__(self, "length", checks.positive(self.length, "own_ship.length"))
+        object.__setattr__(self, "width", checks.positive(self.width, "own_ship.width"))
 
 
 @dataclass(frozen=True)
@@ -139,8 +109,8 @@ class Obstacle:
     zeta: float = 1.0
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "state", _array(self.state, "obstacle.state", (4,)))
-        cov = _array(self.cov, "obstacle.cov", (4, 4))
+        object.__setattr__(self, "state", checks.finite_array(self.state, "obstacle.state", (4,)))
+        cov = checks.finite_array(self.cov, "obstacle.cov", (4, 4))
         _check_psd(cov, "obstacle.cov")
         pos_eig = np.linalg.eigvalsh(0.5 * (cov[:2, :2] + cov[:2, :2].T))
         if pos_eig.min() <= 0:
@@ -149,10 +119,10 @@ class Obstacle:
                 f"needs a spread), got eigenvalues {pos_eig.tolist()}"
             )
         object.__setattr__(self, "cov", 0.5 * (cov + cov.T))
-        object.__setattr__(self, "length", _positive(self.length, "obstacle.length"))
-        object.__setattr__(self, "width", _positive(self.width, "obstacle.width"))
+        object.__setattr__(self, "length", checks.positive(self.length, "obstacle.length"))
+        object.__setattr__(self, "width", checks.positive(self.width, "obstacle.width"))
         if self.waypoints is not None:
-            object.__setattr__(self, "waypoints", _waypoints(self.waypoints, "obstacle.waypoints", 2))
+            object.__setattr__(self, "waypoints", checks.waypoints(self.waypoints, "obstacle.waypoints", 2))
         n_ps = self.n_ps
         if isinstance(n_ps, bool) or not isinstance(n_ps, (int, np.integer)) or n_ps < 1 or n_ps % 2 == 0:
             raise ValueError(f"obstacle.n_ps must be an odd integer >= 1, got {n_ps!r}")
@@ -160,14 +130,14 @@ class Obstacle:
         if self.probs is None:
             probs = np.full(n_ps, 1.0 / n_ps)
         else:
-            probs = _array(self.probs, "obstacle.probs", (n_ps,))
+            probs = checks.finite_array(self.probs, "obstacle.probs", (n_ps,))
             if np.any(probs < 0) or abs(probs.sum() - 1.0) > 1e-6:
                 raise ValueError(
                     f"obstacle.probs must be {n_ps} non-negative numbers summing to 1, got {probs.tolist()}"
                 )
         object.__setattr__(self, "probs", probs)
-        object.__setattr__(self, "weight", _positive(self.weight, "obstacle.weight", allow_zero=True))
-        object.__setattr__(self, "zeta", _positive(self.zeta, "obstacle.zeta", allow_zero=True))
+        object.__setattr__(self, "weight", checks.positive(self.weight, "obstacle.weight", allow_zero=True))
+        object.__setattr__(self, "zeta", checks.positive(self.zeta, "obstacle.zeta", allow_zero=True))
 
 
 @dataclass(frozen=True)
