@@ -74,6 +74,9 @@ class Evaluation(NamedTuple):
 def context(inputs: SolveInputs, last_offsets, params: Params, config: PlannerConfig, *,
             dense: bool = False) -> Context:
     """Rollouts and predictions of one solve: what every cost term reads."""
+    # packed inputs have NumPy leaves: outside jit, NumPy arithmetic would promote int32/float32 (a no-op on
+    # traced values)
+    inputs = jax.tree.map(jnp.asarray, inputs)
     n_steps, dt = config.n_steps, config.dt
     own_in, obs_in = inputs.own, inputs.obstacles
     dtype = own_in.state.dtype

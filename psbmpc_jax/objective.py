@@ -52,7 +52,7 @@ def objective(controls, inputs: SolveInputs, params: Params, samples, config: Pl
         per_step: the rows of ``controls`` are per time step.
         smooth: evaluate the collision term with the quadrature estimator (the smooth form).
     """
-    controls = jnp.asarray(controls)
+    controls = jnp.asarray(controls).astype(inputs.own.state.dtype)     # the inputs' (config's) dtype
     _check_controls(controls, config, per_step)
     if per_step:
         params = params.replace(t_ts=jnp.asarray(config.dt, controls.dtype))
