@@ -50,3 +50,14 @@ def test_readme_charts_example_runs():
     assert 1 <= len(polygons) < len(namespace["chart"].polygons)
     # every ring set is (outer, holes...) with rings of shape [n >= 3, 2]
     assert all(r.ndim == 2 and r.shape[0] >= 3 and r.shape[1] == 2 for rings in polygons for r in rings)
+
+
+def test_readme_objective_example_runs():
+    blocks = _python_blocks()
+    objective_block = [b for b in blocks if "objective(" in b]
+    assert objective_block, "README has no objective example"
+    namespace: dict = {}
+    exec(compile(blocks[0], str(README), "exec"), namespace)  # noqa: S102
+    exec(compile(objective_block[0].replace("\n  ", "\n").strip(), str(README), "exec"), namespace)  # noqa: S102
+    g = np.asarray(namespace["g"])
+    assert g.shape == (2, 2) and np.all(np.isfinite(g)) and np.abs(g).max() > 0
