@@ -261,11 +261,13 @@ def _cull(tiles: _Tiles, ch: _Chunks, tol, bound, M, KC) -> _Live:
     n_cand = jnp.where(idle, 0, n_cand)
     before = _bits_before(words)
 
-    # 3. the candidate chunks' edges against the tile: centre distance, box gap, crossing from the corner
+    # 3. the candidate chunks' edges against the tile: centre distance (``dc2``: the centre's nearest edge is
+    #    in a candidate chunk), box gap, crossing of the ray from the corner
     cx, cy, qx, qy = tiles.cx[:, None], tiles.cy[:, None], xmax[:, None], ymax[:, None]
+    q_max = jnp.minimum(jnp.max(n_cand), KC)
 
     def gather_body(q, carry):
-        ids, e2s, g2s, crs = carry
+        ids, e2s, g2s, crs, dc2 = carry
         f = _nth_bit(words, before, q)
         f = jnp.where((f >= 0) & ~idle, f, C)                                    # C: the null chunk
         r = ch.rows[f]                                                           # [N, 8, M]
@@ -276,24 +278,27 @@ def _cull(tiles: _Tiles, ch: _Chunks, tol, bound, M, KC) -> _Live:
         dx = jnp.maximum(0.0, jnp.maximum(jnp.minimum(ax, bx) - qx, xmin[:, None] - jnp.maximum(ax, bx)))
         dy = jnp.maximum(0.0, jnp.maximum(jnp.minimum(ay, by) - qy, ymin[:, None] - jnp.maximum(ay, by)))
         put = lambda a, v: lax.dynamic_update_index_in_dim(a, v, q, axis=0)
-        return put(ids, f), put(e2s, e2), put(g2s, dx * dx + dy * dy), put(crs, cross)
+        return put(ids, f), put(e2s, e2), put(g2s, dx * dx + dy * dy), put(crs, cross), jnp.minimum(dc2, e2.min(1))
 
-    ids, e2s, g2s, crs = lax.fori_loop(0, jnp.minimum(jnp.max(n_cand), KC), gather_body, (
-        jnp.full((KC, N), C, jnp.int32), jnp.full((KC, N, M), jnp.inf, dtype), jnp.full((KC, N, M), jnp.inf, dtype),
-        jnp.zeros((KC, N, M), bool)))
-    # 4. live edges: those that can be nearest to some point of the tile (the centre's distance is exact:
-    #    its nearest edge is in a candidate chunk); the others add their crossings to ``par``
-    dc = jnp.sqrt(jnp.min(e2s, axis=(0, 2)))
-    filled = (jnp.arange(KC)[:, None] < n_cand)[..., None]
-    live = filled & (e2s <= jnp.square(dc + 2 * tiles.h + tol)[:, None]) & (
-        g2s <= jnp.square(dc + tiles.h + tol)[:, None])
-    par = par ^ (jnp.sum(~live & crs, axis=(0, 2)) % 2 == 1)
-    bits = jnp.sum(live.astype(jnp.uint32) << jnp.arange(M, dtype=jnp.uint32), axis=2)   # [KC, N]
-    per_word = 32 // M
-    lwords = jnp.sum(bits.reshape(KC // per_word, per_word, N) << (M * jnp.arange(per_word, dtype=jnp.uint32))[
-        :, None], axis=1, dtype=jnp.uint32)                                       # [KC M / 32, N]
-    return _Live(lwords, _bits_before(lwords), ids, jnp.sum(lax.population_count(lwords), axis=0).astype(jnp.int32),
-                 par, idle, jnp.max(n_cand) > KC)
+    ids, e2s, g2s, crs, dc2 = lax.fori_loop(0, q_max, gather_body, (
+        jnp.full((KC, N), C, jnp.int32), jnp.zeros((KC, N, M), dtype), jnp.zeros((KC, N, M), dtype),
+        jnp.zeros((KC, N, M), bool), jnp.full((N,), jnp.inf, dtype)))
+
+    # 4. live edges: those that can be nearest to some point of the tile; the others add their crossings to par
+    dc = jnp.sqrt(dc2)
+    near2, gap2 = jnp.square(dc + 2 * tiles.h + tol)[:, None], jnp.square(dc + tiles.h + tol)[:, None]
+    lanes = jnp.arange(M, dtype=jnp.uint32)
+
+    def live_body(q, carry):
+        lwords, count, par = carry
+        live = (q < n_cand)[:, None] & (e2s[q] <= near2) & (g2s[q] <= gap2)
+        bits = jnp.sum(live.astype(jnp.uint32) << lanes, axis=1, dtype=jnp.uint32)
+        return (_set_bits(lwords, q * M, bits), count + jnp.sum(live, axis=1, dtype=jnp.int32),
+                par ^ (jnp.sum(~live & crs[q], axis=1) % 2 == 1))
+
+    lwords, count, par = lax.fori_loop(0, q_max, live_body, (jnp.zeros((-(-KC * M // 32), N), jnp.uint32),
+                                                             jnp.zeros(N, jnp.int32), par))
+    return _Live(lwords, _bits_before(lwords), ids, count, par, idle, jnp.max(n_cand) > KC)
 
 
 def _nearest(tiles: _Tiles, ch: _Chunks, live: _Live, M, track):
@@ -367,7 +372,7 @@ def polygon_argmax(px, py, tw, score, bound, edges, nxt, n, with_direction=True,
         def best():
             d, ex, ey = lax.cond(with_direction, lambda: _nearest(tiles, ch, live, chunk, True),
                                  lambda: _nearest(tiles, ch, live, chunk, False))
-            s = jnp.where(tiles.valid & ~live.idle[:, None], score(d, ex, ey, tiles.w), -jnp.inf)
+            s = jnp.where(tiles.valid, jnp.where(live.idle[:, None], 0.0, score(d, ex, ey, tiles.w)), -jnp.inf)
             return jnp.argmax(s.reshape(B, -1), axis=1).astype(jnp.int32)
 
         return overflow | live.overflow, lax.cond(jnp.all(live.idle), lambda: jnp.zeros(B, jnp.int32), best)

@@ -59,18 +59,21 @@ def assert_same(got_out, want_out, n_real: int, rtol: float = 1e-12):
 
 
 # ------------------------------------------------------------------------------------------ in process
-@pytest.mark.parametrize("seed", [0, 4])
-def test_single_device_matches_evaluate(seed):
-    arrays, state, params, samples = prepared(seed)
-    n_real = int(np.sum(np.asarray(arrays.behaviours.mask)))
-    want = solve(arrays, state, params, samples, config=CFG)
-    got = solve_sharded(arrays, state, params, samples, CFG)              # default: jax.local_devices()
-    assert_same(got, want, n_real)
-    assert int(got[2].n_pc_blocks) == int(want[2].n_pc_blocks)
-    assert np.all(np.isinf(np.asarray(got[2].total)[n_real:]))           # padded behaviours masked
-    # one compiled program per (config, device set, shapes): the second seed must not recompile
+def test_single_device_matches_evaluate():
     fn, _ = _sharded_fn(CFG, tuple(jax.local_devices()))
-    assert fn._cache_size() == 1
+    sizes = []
+    for seed in (0, 4):
+        arrays, state, params, samples = prepared(seed)
+        n_real = int(np.sum(np.asarray(arrays.behaviours.mask)))
+        want = solve(arrays, state, params, samples, config=CFG)
+        got = solve_sharded(arrays, state, params, samples, CFG)          # default: jax.local_devices()
+        assert_same(got, want, n_real)
+        assert int(got[2].n_pc_blocks) == int(want[2].n_pc_blocks)
+        assert np.all(np.isinf(np.asarray(got[2].total)[n_real:]))       # padded behaviours masked
+        sizes.append(fn._cache_size())
+    # one compiled program per (config, device set, terms, shapes): the second seed must not recompile.
+    # Other tests may have compiled the same function for other term sets, so compare, not count.
+    assert sizes[1] == sizes[0] >= 1
 
 
 def test_unbucketed_behaviour_count_and_mc():
