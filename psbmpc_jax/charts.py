@@ -43,6 +43,7 @@ import json
 import math
 import pathlib
 import re
+import warnings
 from dataclasses import dataclass, field
 from typing import Sequence
 
@@ -55,6 +56,7 @@ __all__ = [
     "range_filter", "to_rings", "to_ring_sets", "combine_charts", "count_vertices", "BUILTIN_CHARTS",
     "parse_crs", "CRSInfo", "lonlat_to_utm", "utm_to_lonlat", "utm_zone_for", "convert_utm",
     "TABLE2_FILE_INDICES", "PIREN_ORIGIN_LATLON", "NIDELVA_OWN_SHIP_UTM", "nidelva_own_ship_ned",
+    "ChartWarning", "MAX_ORIGIN_DISTANCE_M", "tm_coefficients", "UTM_EAST_RANGE", "UTM_NORTH_RANGE",
 ]
 
 # ================================================================================================ constants
@@ -80,6 +82,26 @@ PIREN_ORIGIN_LATLON = (63.4389029083, 10.39908278)
 NIDELVA_OWN_SHIP_UTM = (570210.0, 7034815.0, 32)
 
 _SEPARATOR = -1.0
+
+#: Farthest the chart may lie from an origin given explicitly (``origin=``) [m]; farther means the origin or
+#: the chart is in the wrong CRS or has its coordinates swapped.
+MAX_ORIGIN_DISTANCE_M = 100_000.0
+
+#: Plausible UTM coordinates [m]: eastings (wide enough for Norway's use of zone 33 from 4 deg E to 31 deg E)
+#: and northings (0 at the equator in the north, 10 000 km false northing in the south).
+UTM_EAST_RANGE = (-1_000_000.0, 2_000_000.0)
+UTM_NORTH_RANGE = (-1_000_000.0, 10_500_000.0)
+
+#: Largest longitude difference [deg] from the central meridian of the UTM zone lon/lat data is projected to.
+MAX_ZONE_LON_OFFSET_DEG = 20.0
+
+_ORDER_HINT = ("check the coordinate order and the CRS: GeoJSON and lon/lat charts are [lon, lat] (not [lat, lon]); "
+               "UTM is (east, north) (the psbmpc CSV: line 2 eastings, line 3 northings); lon/lat degrees need a "
+               "lon/lat CRS (EPSG:4326), UTM metres a UTM CRS")
+
+
+class ChartWarning(UserWarning):
+    """A chart loaded, but something was dropped or looks wrong (the counts are also in ``Chart.report``)."""
 
 
 # ================================================================================================ UTM
@@ -109,6 +131,16 @@ def _tm_series(f: float):
         20648693 * n6 / 638668800,
     )
     return A, alpha, beta
+
+
+def tm_coefficients(datum: str = "WGS84"):
+    """``(a, f, A, alpha, beta)`` of the transverse Mercator series (Krueger n^6) of ``datum``'s ellipsoid:
+    semi-major axis [m], flattening, rectifying-radius factor and the forward / inverse coefficients."""
+    if datum not in _ELLIPSOIDS:
+        raise ValueError(f"datum must be one of {list(_ELLIPSOIDS)}, got {datum!r}")
+    a, f = _ELLIPSOIDS[datum]
+    A, alpha, beta = _tm_series(f)
+    return a, f, A, alpha, beta
 
 
 def _check_zone(zone) -> int:
@@ -431,11 +463,21 @@ def _project_raws(raws: list[_Raw], info: CRSInfo, zone: int | None, where: str)
     if info.kind == "lonlat":
         allpts = np.vstack([r.shell for r in raws])
         if np.any(np.abs(allpts[:, 0]) > 180.0) or np.any(np.abs(allpts[:, 1]) > 90.0):
+            if np.all(np.abs(allpts[:, 0]) <= 90.0) and np.all(np.abs(allpts[:, 1]) <= 180.0):
+                raise ValueError(f"{where}: coordinates are outside lon/lat range (latitude up to "
+                                 f"{np.abs(allpts[:, 1]).max():g} deg) but the CRS is {info.name}; they look like "
+                                 f"[lat, lon] -- lon/lat charts and GeoJSON are [lon, lat]")
             raise ValueError(f"{where}: coordinates are outside lon/lat range but the CRS is {info.name}; "
                              f"projected data needs its CRS (e.g. crs='EPSG:32632')")
         if zone is None:
             c = allpts.mean(axis=0)
             zone = utm_zone_for(c[0], c[1])
+        cm = 6.0 * _check_zone(zone) - 183.0
+        off = np.abs((allpts[:, 0] - cm + 180.0) % 360.0 - 180.0).max()
+        if off > MAX_ZONE_LON_OFFSET_DEG:
+            raise ValueError(f"{where}: longitudes up to {off:.1f} deg from the central meridian ({cm:g} deg) of UTM "
+                             f"zone {zone}; at most {MAX_ZONE_LON_OFFSET_DEG:g} deg allowed -- a wrong zone, or "
+                             f"[lat, lon] given where [lon, lat] belongs")
         south = bool(np.mean(allpts[:, 1]) < 0)
         out_info = CRSInfo("utm", info.datum, _check_zone(zone), south)
 
@@ -469,6 +511,8 @@ def _build_chart(raws: list[_Raw], info: CRSInfo, *, origin, zone, source: str, 
         raise ValueError(f"{where}: no polygons found (empty chart)")
     _check_finite(raws, where)
     raws, info = _project_raws(raws, info, zone, where)
+    _check_utm_range(raws, info, where)
+    explicit_origin = origin is not None
     if origin is None:
         origin = _default_origin(raws)
     origin = tuple(float(v) for v in origin)
@@ -512,7 +556,65 @@ def _build_chart(raws: list[_Raw], info: CRSInfo, *, origin, zone, source: str, 
             polys.append(p)
             ids.append(r.fid)
             layers.append(r.layer)
+    _check_not_lonlat(raws, info, where)
+    if explicit_origin:
+        _check_origin_distance(raws, origin, info, where)
+    _warn_dropped(rep, where)
     return Chart(tuple(polys), origin, info.code, source, tuple(ids), tuple(layers), rep)
+
+
+def _all_points(raws: Sequence[_Raw]) -> np.ndarray:
+    return np.vstack([r.shell for r in raws] + [h for r in raws for h in r.holes if len(h)])
+
+
+def _check_not_lonlat(raws: Sequence[_Raw], info: CRSInfo, where: str) -> None:
+    """Refuse lon/lat degrees declared as UTM: every coordinate within lon/lat range and the whole chart less
+    than 5 m wide (checked after the per-polygon checks, so tiny degenerate test polygons say what they are)."""
+    allpts = _all_points(raws)
+    e, n = allpts[:, 0], allpts[:, 1]
+    extent = float(max(np.ptp(e), np.ptp(n)))
+    if np.all(np.abs(e) <= 180.0) and np.all(np.abs(n) <= 90.0) and extent < 5.0:
+        raise ValueError(f"{where}: the coordinates look like lon/lat degrees (east {e.min():g}..{e.max():g}, north "
+                         f"{n.min():g}..{n.max():g}: the whole chart would be {extent:.3g} m wide) but the CRS is "
+                         f"{info.name}; give the lon/lat CRS (crs='EPSG:4326') or UTM metres")
+
+
+def _check_utm_range(raws: Sequence[_Raw], info: CRSInfo, where: str) -> None:
+    """Refuse UTM data outside the plausible UTM range: (north, east) swapped, or garbage from a corrupt file."""
+    allpts = _all_points(raws)
+    e, n = allpts[:, 0], allpts[:, 1]
+    e_lo, e_hi = UTM_EAST_RANGE
+    n_lo, n_hi = UTM_NORTH_RANGE
+    bad_e = (e < e_lo) | (e > e_hi)
+    bad_n = (n < n_lo) | (n > n_hi)
+    if np.any(bad_e) or np.any(bad_n):
+        swapped = (np.all((n >= e_lo) & (n <= e_hi)) and np.all((e >= n_lo) & (e <= n_hi)))
+        hint = ("; they look like (north, east) -- UTM is (east, north) (the psbmpc CSV: line 2 eastings, line 3 "
+                "northings)" if swapped else "; a corrupt file or the wrong CRS?")
+        k = int(np.flatnonzero(bad_e | bad_n)[0])
+        raise ValueError(f"{where}: coordinate ({e[k]:.6g}, {n[k]:.6g}) is outside the plausible UTM range "
+                         f"(east {e_lo:g}..{e_hi:g} m, north {n_lo:g}..{n_hi:g} m) of {info.name}{hint}")
+
+
+def _check_origin_distance(raws: Sequence[_Raw], origin, info: CRSInfo, where: str) -> None:
+    allpts = np.vstack([r.shell for r in raws])
+    lo, hi = allpts.min(axis=0), allpts.max(axis=0)
+    o = np.asarray(origin, float)
+    d = float(np.hypot(*np.maximum(0.0, np.maximum(lo - o, o - hi))))
+    if d > MAX_ORIGIN_DISTANCE_M:
+        raise ValueError(f"{where}: the chart lies {d / 1000:.0f} km from the origin (E0, N0) = ({o[0]:.0f}, "
+                         f"{o[1]:.0f}) in {info.name}; at most {MAX_ORIGIN_DISTANCE_M / 1000:.0f} km allowed -- "
+                         f"{_ORDER_HINT}; and the origin's zone")
+
+
+def _warn_dropped(rep: dict, where: str) -> None:
+    """One :class:`ChartWarning` naming every count of features or parts that were dropped."""
+    what = {"n_empty_features": "empty features (no coordinates)",
+            "n_skipped_features": "features without polygon geometry (null, Point, LineString, ...)",
+            "n_null_shapes": "null shapes", "n_dropped_parts": "degenerate holes / non-areal parts"}
+    dropped = [f"{int(rep[k])} {txt}" for k, txt in what.items() if int(rep.get(k, 0) or 0) > 0]
+    if dropped:
+        warnings.warn(f"{where}: dropped {', '.join(dropped)}; counted in Chart.report", ChartWarning, stacklevel=4)
 
 
 # ================================================================================================ loaders
@@ -589,6 +691,8 @@ def _geojson_polygons(geom, fid: int, where: str, counts: dict) -> list[_Raw]:
     try:
         if t == "Polygon":
             rings = [np.asarray(r, float)[:, :2] for r in geom["coordinates"]]
+            if not rings:
+                counts["n_empty_features"] = counts.get("n_empty_features", 0) + 1
             return [_Raw(rings[0], rings[1:], fid)] if rings else []
         if t == "MultiPolygon":
             out = []
@@ -596,9 +700,16 @@ def _geojson_polygons(geom, fid: int, where: str, counts: dict) -> list[_Raw]:
                 rings = [np.asarray(r, float)[:, :2] for r in poly]
                 if rings:
                     out.append(_Raw(rings[0], rings[1:], fid))
+            if not out:
+                counts["n_empty_features"] = counts.get("n_empty_features", 0) + 1
             return out
         if t == "GeometryCollection":
-            return [r for g in geom.get("geometries", []) for r in _geojson_polygons(g, fid, where, counts)]
+            sub: dict = {}
+            out = [r for g in geom.get("geometries", []) for r in _geojson_polygons(g, fid, where, sub)]
+            if not out:
+                key = "n_empty_features" if not geom.get("geometries") else "n_skipped_features"
+                counts[key] = counts.get(key, 0) + 1
+            return out
     except (TypeError, ValueError, IndexError, KeyError):
         raise ValueError(f"{where}: feature {fid} has malformed {t} coordinates") from None
     counts["n_skipped_features"] = counts.get("n_skipped_features", 0) + 1
@@ -645,9 +756,11 @@ def load_geojson(path, origin=None, *, crs: str | None = None, zone: int | None 
             continue
         raws += _geojson_polygons(g, fid, where, counts)
     counts.setdefault("n_skipped_features", 0)
+    counts.setdefault("n_empty_features", 0)
     if not raws:
         raise ValueError(f"{where}: no Polygon or MultiPolygon features (empty chart; "
-                         f"{counts['n_skipped_features']} other features skipped)")
+                         f"{counts['n_skipped_features']} other features skipped, {counts['n_empty_features']} "
+                         f"empty)")
     return _build_chart(raws, info, origin=origin, zone=zone, source=where, report=counts)
 
 
@@ -678,12 +791,21 @@ def _read_shapefile_layer(shp, shx, dbf, prj_text: str | None, name: str, where:
     import shapefile  # pyshp
 
     try:
-        reader = shapefile.Reader(shp=shp, shx=shx, dbf=dbf)
-        shapes = reader.shapes()
-        shape_type = reader.shapeType
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            reader = shapefile.Reader(shp=shp, shx=shx, dbf=dbf)
+            shapes = reader.shapes()
+            shape_type = reader.shapeType
+            file_bbox = list(reader.bbox) if len(shapes) else None
     except Exception as exc:  # pyshp raises its own ShapefileException and struct errors
         raise ValueError(f"{where}: cannot read shapefile layer {name!r} ({exc}); expected an ESRI shapefile "
                          f"with Polygon geometry") from None
+    corrupt = [str(w.message) for w in caught if "Corrupt" in type(w.message).__name__]
+    if corrupt:
+        raise ValueError(f"{where}: cannot read shapefile layer {name!r}: corrupt file ({corrupt[0]}); expected an "
+                         f"intact ESRI shapefile (.shp, .shx and .dbf written together)")
+    for w in caught:  # anything else pyshp said is passed on
+        warnings.warn(f"{where}: layer {name!r}: pyshp: {w.message}", ChartWarning, stacklevel=3)
     if crs_override is not None:
         info = parse_crs(crs_override)
     elif prj_text:
@@ -703,12 +825,30 @@ def _read_shapefile_layer(shp, shx, dbf, prj_text: str | None, name: str, where:
         if shp_obj.shapeType == 0 or not shp_obj.points:
             n_null += 1
             continue
+        _check_record_bbox(shp_obj, file_bbox, fid, name, where)
         gi = shp_obj.__geo_interface__
         counts: dict = {}
         for r in _geojson_polygons(gi, fid, where, counts):
             r.layer = name
             raws.append(r)
     return raws, info, (f"{n_null} null shapes" if n_null else "")
+
+
+def _check_record_bbox(shp_obj, file_bbox, fid: int, name: str, where: str) -> None:
+    """Every point of a record must lie in the record's stored bounding box and in the file's: a coordinate
+    outside them is garbage read from a corrupt file."""
+    pts = np.asarray(shp_obj.points, float)[:, :2]
+    for label, bb in (("record", getattr(shp_obj, "bbox", None)), ("file", file_bbox)):
+        if bb is None or len(bb) < 4:
+            continue
+        lo, hi = np.array(bb[:2], float), np.array(bb[2:4], float)
+        tol = 1e-6 * np.maximum(1.0, np.maximum(np.abs(lo), np.abs(hi)))
+        bad = ~np.all(np.isfinite(pts), axis=1) | np.any((pts < lo - tol) | (pts > hi + tol), axis=1)
+        if np.any(bad):
+            k = int(np.flatnonzero(bad)[0])
+            raise ValueError(f"{where}: cannot read shapefile layer {name!r}: record {fid} point {k} "
+                             f"({pts[k, 0]:.6g}, {pts[k, 1]:.6g}) lies outside the {label}'s bounding box "
+                             f"({lo[0]:.6g}, {lo[1]:.6g}, {hi[0]:.6g}, {hi[1]:.6g}): a corrupt file")
 
 
 def _load_shapefile_sources(sources: dict, where: str, origin, layer, crs, zone) -> Chart:

@@ -4,15 +4,22 @@ Each check returns the validated value (converted) or raises ``ValueError`` nami
 allowed:
 
 * :func:`finite_array` — a finite float array, optionally of an exact shape or number of dimensions
-  (the situation types, the simulator's metrics and tracker);
+  (the situation types, the simulator's metrics and tracker); booleans and strings are refused;
+* :func:`real` — one finite real number (Python or NumPy int/float, not bool, not a string), as float;
 * :func:`positive` — a finite scalar ``> 0`` (or ``>= 0``);
 * :func:`waypoints` — a route ``[n, 2]`` (north, east) without zero-length segments;
-* :func:`integer` — an integer (not bool) with a lower bound (scenario files, ``simulate``);
-* :func:`multiple_of` — the number of steps a duration holds, which must be a whole multiple of the step.
+* :func:`integer` — an integer (not bool; NumPy integers accepted) with a lower and optional upper bound;
+* :func:`multiple_of` — the number of steps a duration holds, which must be a whole multiple of the step;
+* :func:`course` / :func:`speed` — an angle in radians (refusing degrees by mistake) and a plausible ship speed;
+* :func:`prng_key` — the PRNG key of the ``mc`` / ``ce`` estimators.
+
+Plausibility limits shared by the Python API and the scenario files are module constants
+(:data:`MAX_SPEED_MPS`, :data:`MAX_ANGLE_RAD`).
 """
 
 from __future__ import annotations
 
+import math
 import numbers
 
 import numpy as np
@@ -20,19 +27,71 @@ import numpy as np
 #: Tolerance of the "is a multiple of the simulation step" checks (relative to the number of steps).
 MULTIPLE_TOL = 1e-9
 
+#: Highest plausible ship speed [m/s] (58 kn: above the fastest high-speed craft in service).  Speeds above
+#: it are refused everywhere (own-ship, obstacles, scenario ships) -- usually km/h or knots passed as m/s.
+MAX_SPEED_MPS = 30.0
+
+#: Largest magnitude [rad] accepted for a course or direction: 2 pi.  Larger values are almost always degrees
+#: passed where radians belong (``np.deg2rad`` converts them).
+MAX_ANGLE_RAD = 2.0 * math.pi
+
+
+def _is_bool(v) -> bool:
+    return isinstance(v, (bool, np.bool_))
+
+
+def real(value, name: str) -> float:
+    """One finite real number: a Python or NumPy int/float or a 0-d numeric array (not bool, not a string)."""
+    if isinstance(value, np.ndarray) and value.shape == () and value.dtype.kind in "iuf":
+        value = value[()]
+    if _is_bool(value) or not isinstance(value, numbers.Real):
+        raise ValueError(f"{name} must be a real number (int or float, not bool or str), got "
+                         f"{type(value).__name__} {value!r}"[:300])
+    try:
+        x = float(value)
+    except OverflowError:
+        raise ValueError(f"{name} is too large to be a float, got an integer with {len(str(int(value)))} "
+                         f"digits") from None
+    if not math.isfinite(x):
+        raise ValueError(f"{name} must be finite (no NaN/inf), got {x}")
+    return x
+
+
+def _has_bool(value) -> bool:
+    if isinstance(value, (list, tuple)):
+        return any(_has_bool(v) for v in value)
+    return _is_bool(value)
+
+
+def _numeric(value, name: str) -> np.ndarray:
+    """``value`` as a float array; booleans, strings, None and ragged nestings are refused."""
+    try:
+        arr = np.asarray(value)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name} must be a numeric array, got {value!r} ({exc})"[:300]) from None
+    kind = arr.dtype.kind
+    if isinstance(value, (list, tuple)) and kind in "iuf" and _has_bool(value):
+        kind = "b"                                # [0, 0, True, 1] became an int array: refuse it all the same
+    if kind in "bUSc" or (kind == "O" and any(x is None or _is_bool(x) or isinstance(x, (str, bytes, complex))
+                                              for x in arr.ravel())):
+        raise ValueError(f"{name} must be numeric (real numbers, not bool/str/None), got {value!r}"[:300])
+    try:
+        return np.array(arr, dtype=float)
+    except (TypeError, ValueError, OverflowError) as exc:
+        raise ValueError(f"{name} must be numeric, got {value!r} ({exc})"[:300]) from None
+
 
 def finite_array(value, name: str, shape: tuple | None = None, *, ndim: int | None = None) -> np.ndarray:
     """``value`` as a finite float array (a copy), of shape ``shape`` and/or ``ndim`` dimensions if given."""
-    try:
-        arr = np.array(value, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{name} must be numeric, got {value!r}") from exc
+    if value is None:
+        raise ValueError(f"{name} must be numeric, got None")
+    arr = _numeric(value, name)
     if shape is not None and arr.shape != shape:
         raise ValueError(f"{name} must have shape {shape}, got {arr.shape}")
     if ndim is not None and arr.ndim != ndim:
         raise ValueError(f"{name} must be a {ndim}-d array, got shape {arr.shape}")
     if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} must be finite (no NaN/inf), got {arr.tolist()}")
+        raise ValueError(f"{name} must be finite (no NaN/inf), got {arr.tolist()}"[:300])
     return arr
 
 
@@ -46,6 +105,8 @@ def positive(value, name: str, *, allow_zero: bool = False) -> float:
 
 def waypoints(value, name: str, min_points: int) -> np.ndarray:
     """A route ``[n >= min_points, 2]`` (north, east) with no repeated consecutive waypoint."""
+    if value is None:
+        raise ValueError(f"{name} must be an array [n >= {min_points}, 2] (north, east), got None")
     wps = finite_array(value, name)
     if wps.ndim != 2 or wps.shape[1] != 2:
         raise ValueError(f"{name} must have shape [n, 2] (north, east), got {wps.shape}")
@@ -56,11 +117,22 @@ def waypoints(value, name: str, min_points: int) -> np.ndarray:
     return wps
 
 
-def integer(v, where: str, *, ge: int) -> int:
-    """An integer (not bool) ``>= ge``, as int."""
-    if isinstance(v, bool) or not isinstance(v, numbers.Integral) or v < ge:
-        raise ValueError(f"{where} must be an integer >= {ge}, got {v!r}")
+def integer(v, where: str, *, ge: int, le: int | None = None) -> int:
+    """An integer (not bool; Python or NumPy) ``>= ge`` (and ``<= le`` if given), as int."""
+    ok = not _is_bool(v) and isinstance(v, (numbers.Integral, np.integer))
+    if not ok or v < ge:
+        raise ValueError(f"{where} must be an integer >= {ge}, got {show(v)}")
+    if le is not None and v > le:
+        raise ValueError(f"{where} must be an integer <= {le} (allowed: {ge}..{le}), got {show(v)}")
     return int(v)
+
+
+def show(v) -> str:
+    """``repr(v)`` shortened: huge integers by their number of digits, long texts cut."""
+    if isinstance(v, (numbers.Integral, np.integer)) and not _is_bool(v) and abs(int(v)) >= 10 ** 30:
+        return f"an integer with {len(str(abs(int(v))))} digits"
+    r = repr(v)
+    return r if len(r) <= 200 else r[:200] + "..."
 
 
 def multiple_of(value: float, step: float, what: str, step_what: str) -> int:
@@ -70,3 +142,44 @@ def multiple_of(value: float, step: float, what: str, step_what: str) -> int:
     if k < 1 or abs(n - k) > MULTIPLE_TOL * max(1.0, abs(n)):
         raise ValueError(f"{what} ({value:g}) must be a multiple of {step_what} ({step:g})")
     return int(k)
+
+
+def course(value, name: str) -> float:
+    """An angle in radians with ``|value| <= 2 pi``; larger magnitudes are refused as probable degrees."""
+    x = float(finite_array(value, name, ()))
+    if abs(x) > MAX_ANGLE_RAD:
+        raise ValueError(f"{name} = {x:g} is not an angle in radians (|angle| <= 2 pi = {MAX_ANGLE_RAD:.4f} "
+                         f"allowed); degrees? convert them with np.deg2rad({x:g}) = {math.radians(x):.6g}")
+    return x
+
+
+def speed(value, name: str, *, allow_zero: bool = True, limit: float = MAX_SPEED_MPS) -> float:
+    """A ship speed in m/s, ``0 <= value <= MAX_SPEED_MPS`` (``> 0`` without ``allow_zero``)."""
+    v = positive(value, name, allow_zero=allow_zero)
+    if v > limit:
+        raise ValueError(f"{name} = {v:g} m/s is not a plausible ship speed (at most {limit:g} m/s = "
+                         f"{limit * 3600 / 1852:.0f} kn allowed); knots or km/h given as m/s?")
+    return v
+
+
+def prng_key(key, name: str = "key"):
+    """A JAX PRNG key for the ``mc`` / ``ce`` estimators: a typed key (``jax.random.key(seed)``) or a legacy
+    raw ``uint32[2]`` key (``jax.random.PRNGKey(seed)``), one key (not a batch).  Returned unchanged."""
+    import jax
+    import jax.numpy as jnp
+
+    hint = "pass key=jax.random.key(seed) with an integer seed"
+    if key is None:
+        raise ValueError(f"{name}: the mc / ce estimators draw samples and need a PRNG key; {hint}")
+    if _is_bool(key) or isinstance(key, (numbers.Number, str, bytes)):
+        raise ValueError(f"{name} must be a JAX PRNG key, got {type(key).__name__} {key!r}; {hint}"[:300])
+    dtype = getattr(key, "dtype", None)
+    if dtype is not None and jnp.issubdtype(dtype, jax.dtypes.prng_key):
+        if np.shape(key) != ():
+            raise ValueError(f"{name} must be a single PRNG key, got a batch of shape {np.shape(key)}; {hint}")
+        return key
+    if dtype is not None and np.dtype(dtype) == np.uint32 and np.shape(key) == (2,):
+        return key
+    raise ValueError(f"{name} must be a JAX PRNG key (jax.random.key(seed), or a raw uint32[2] from "
+                     f"jax.random.PRNGKey), got {type(key).__name__} with dtype {dtype} and shape "
+                     f"{np.shape(key) if dtype is not None else '-'}; {hint}")

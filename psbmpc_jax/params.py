@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import numbers
 from dataclasses import dataclass, fields
 
 import jax
@@ -23,6 +24,28 @@ import numpy as np
 
 ESTIMATORS = ("quadrature", "mc", "ce")
 DTYPES = ("float32", "float64")
+
+#: Most prediction steps ``T / dt`` a :class:`PlannerConfig` may have.
+MAX_HORIZON_STEPS = 100_000
+_CONFIG_FLOATS = ("T", "dt", "quad_span", "grid_spacing", "grid_margin")
+#: Allowed ranges of the integer :class:`PlannerConfig` fields (upper bounds only stop absurd sizes).
+_CONFIG_INTS = {"n_samples": (1, 10_000_000), "ce_max_iter": (0, 1000), "n_quad": (2, 10_000),
+                "time_block": (1, 100_000), "chunk_rows": (1, 100_000_000)}
+
+
+def _finite_float(v) -> bool:
+    try:
+        return math.isfinite(float(v))
+    except OverflowError:
+        return False
+
+
+def _show(v) -> str:
+    """``repr(v)``, with huge integers shortened to their number of digits."""
+    if isinstance(v, numbers.Integral) and not isinstance(v, bool) and abs(int(v)) >= 10 ** 30:
+        return f"(an integer with {len(str(abs(int(v))))} digits)"
+    r = repr(v)
+    return r if len(r) <= 200 else r[:200] + "..."
 
 
 @dataclass(frozen=True)
@@ -65,34 +88,34 @@ class PlannerConfig:
     grid_margin: float = 100.0
 
     def __post_init__(self) -> None:
-        for name in ("T", "dt", "quad_span"):
+        for name in _CONFIG_FLOATS:
             v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise ValueError(f"PlannerConfig.{name} must be a finite number > 0, got {v!r}")
+            if (isinstance(v, (bool, np.bool_)) or not isinstance(v, numbers.Real) or not _finite_float(v)
+                    or v <= 0):
+                raise ValueError(f"PlannerConfig.{name} must be a finite number > 0 (int or float, not bool or "
+                                 f"str), got {type(v).__name__} {_show(v)}")
+            if isinstance(v, (np.floating, np.integer)):      # NumPy scalars: stored as the Python number
+                object.__setattr__(self, name, v.item())
         n = self.T / self.dt
         if abs(n - round(n)) > 1e-9 * max(1.0, n) or round(n) < 1:
             raise ValueError(
                 f"PlannerConfig.T / PlannerConfig.dt must be a positive whole number of steps, "
                 f"got T={self.T}, dt={self.dt} (T/dt={n})"
             )
-        if self.estimator not in ESTIMATORS:
-            raise ValueError(f"PlannerConfig.estimator must be one of {ESTIMATORS}, got {self.estimator!r}")
-        if self.dtype not in DTYPES:
-            raise ValueError(f"PlannerConfig.dtype must be one of {DTYPES}, got {self.dtype!r}")
-        if self.grounding_mode not in ("exact", "grid"):
-            raise ValueError(
-                f"PlannerConfig.grounding_mode must be 'exact' or 'grid', got {self.grounding_mode!r}")
-        for name in ("grid_spacing", "grid_margin"):
+        if round(n) > MAX_HORIZON_STEPS:
+            raise ValueError(f"PlannerConfig.T / PlannerConfig.dt = {round(n)} prediction steps; at most "
+                             f"{MAX_HORIZON_STEPS} allowed (T={self.T} s, dt={self.dt} s)")
+        for name, allowed in (("estimator", ESTIMATORS), ("dtype", DTYPES), ("grounding_mode", ("exact", "grid")),
+                              ("pc_layout", ("compact", "dense"))):
             v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise ValueError(f"PlannerConfig.{name} must be a finite number > 0, got {v!r}")
-        if self.pc_layout not in ("compact", "dense"):
-            raise ValueError(f"PlannerConfig.pc_layout must be 'compact' or 'dense', got {self.pc_layout!r}")
-        for name, lo in (("n_samples", 1), ("ce_max_iter", 0), ("n_quad", 2), ("time_block", 1),
-                         ("chunk_rows", 1)):
+            if not isinstance(v, str) or v not in allowed:
+                raise ValueError(f"PlannerConfig.{name} must be one of {allowed}, got {v!r}")
+        for name, (lo, hi) in _CONFIG_INTS.items():
             v = getattr(self, name)
-            if not isinstance(v, (int, np.integer)) or isinstance(v, bool) or v < lo:
-                raise ValueError(f"PlannerConfig.{name} must be an integer >= {lo}, got {v!r}")
+            if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer)) or not lo <= v <= hi:
+                raise ValueError(f"PlannerConfig.{name} must be an integer in {lo}..{hi} (not bool), got "
+                                 f"{type(v).__name__} {_show(v)}")
+            object.__setattr__(self, name, int(v))
 
     @property
     def n_steps(self) -> int:
@@ -186,15 +209,35 @@ _NON_NEGATIVE = ("os_R_a", "ob_R_a", "r_ct", "sigma_x", "sigma_y", "d_safe", "K_
 _UNIT_INTERVAL = ("ce_rho", "ce_alpha")
 
 
-def validate_params(params: Params) -> None:
-    """Host-side check of parameter values; raises ``ValueError`` naming the field and what is allowed."""
+def _param_value(v, name: str) -> float:
+    """One Params leaf as float: a real scalar (Python, NumPy or a 0-d array), not bool or str."""
+    if isinstance(v, (bool, np.bool_, str, bytes)) or v is None:
+        raise ValueError(f"Params.{name} must be a real number, got {type(v).__name__} {v!r}")
+    try:
+        a = np.asarray(v)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"Params.{name} must be a real number, got {v!r} ({exc})") from None
+    if a.dtype.kind not in "iuf":
+        raise ValueError(f"Params.{name} must be a real number (int or float), got {type(v).__name__} {v!r}")
+    if a.shape != ():
+        raise ValueError(f"Params.{name} must be a scalar, got shape {a.shape}")
+    try:
+        return float(a)
+    except OverflowError:
+        raise ValueError(f"Params.{name} is too large to be a float") from None
+
+
+def validate_params(params: Params, config: PlannerConfig | None = None, n_maneuvers: int | None = None) -> None:
+    """Host-side check of parameter values; raises ``ValueError`` naming the field and what is allowed.
+
+    Booleans and strings are refused (NumPy scalars and 0-d arrays are accepted); ``wind_dir`` must be in
+    radians (``|wind_dir| <= 2 pi``: a larger value is taken for degrees and refused with the ``np.deg2rad``
+    value).  With ``config`` the maneuver spacing ``t_ts`` must lie inside the horizon (``t_ts < T``, and
+    with ``n_maneuvers`` = n_M: ``(n_M - 1) t_ts < T``, else later maneuvers never start)."""
     if not isinstance(params, Params):
         raise ValueError(f"params must be a psbmpc_jax.Params, got {type(params).__name__}")
     for f in fields(params):
-        v = np.asarray(getattr(params, f.name), dtype=float)
-        if v.shape != ():
-            raise ValueError(f"Params.{f.name} must be a scalar, got shape {v.shape}")
-        v = float(v)
+        v = _param_value(getattr(params, f.name), f.name)
         if f.name == "t_ts":
             if not (math.isnan(v) or (math.isfinite(v) and v > 0)):
                 raise ValueError(f"Params.t_ts must be > 0 (or nan for T / n_M), got {v}")
@@ -207,6 +250,10 @@ def validate_params(params: Params) -> None:
             raise ValueError(f"Params.{f.name} must be >= 0, got {v}")
         if f.name in _UNIT_INTERVAL and not 0 < v <= 1:
             raise ValueError(f"Params.{f.name} must be in (0, 1], got {v}")
+        if f.name == "wind_dir" and abs(v) > 2 * math.pi:
+            raise ValueError(f"Params.wind_dir = {v:g} is not in radians (|wind_dir| <= 2 pi allowed: the direction "
+                             f"the wind blows towards, from north); degrees? use np.deg2rad({v:g}) = "
+                             f"{math.radians(v):.6g}")
     # the OU diffusion matrix [[sx^2, sxy], [sxy, sy^2]] must be positive semi-definite
     sx2, sy2, sxy = float(params.sigma_x) ** 2, float(params.sigma_y) ** 2, float(params.sigma_xy)
     if sxy * sxy > sx2 * sy2 * (1 + 1e-12):
@@ -214,6 +261,15 @@ def validate_params(params: Params) -> None:
             f"Params.sigma_xy must satisfy sigma_xy^2 <= sigma_x^2 sigma_y^2 (PSD diffusion), got "
             f"sigma_xy={sxy}, sigma_x={params.sigma_x}, sigma_y={params.sigma_y}"
         )
+    if config is not None:
+        t_ts = float(params.t_ts)
+        if not math.isnan(t_ts):
+            n_m = 2 if n_maneuvers is None else int(n_maneuvers)
+            if n_m >= 2 and (n_m - 1) * t_ts >= config.T:
+                raise ValueError(
+                    f"Params.t_ts = {t_ts:g} s puts maneuver {n_m} at {(n_m - 1) * t_ts:g} s, beyond the horizon "
+                    f"PlannerConfig.T = {config.T:g} s; allowed: (n_M - 1) * t_ts < T with n_M = {n_m} "
+                    f"(t_ts < {config.T / (n_m - 1):g} s), or nan for T / n_M")
 
 
 def params_as_arrays(params: Params, dtype) -> Params:
@@ -221,4 +277,5 @@ def params_as_arrays(params: Params, dtype) -> Params:
     return jax.tree_util.tree_map(lambda v: np.asarray(v, dtype=dtype), params)
 
 
-__all__ = ["PlannerConfig", "Params", "validate_params", "params_as_arrays", "ESTIMATORS", "DTYPES"]
+__all__ = ["PlannerConfig", "Params", "validate_params", "params_as_arrays", "ESTIMATORS", "DTYPES",
+           "MAX_HORIZON_STEPS"]

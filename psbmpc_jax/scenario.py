@@ -26,9 +26,12 @@ import shapely.validation
 import yaml
 from shapely.geometry import LineString, Point, Polygon
 
-from .charts import BUILTIN_CHARTS, areal_parts, count_vertices, load_chart, to_ring_sets
-from .checks import integer, multiple_of
-from .params import Params, PlannerConfig
+from . import scenario_checks as limits
+from .charts import BUILTIN_CHARTS, areal_parts, count_vertices, load_chart, lonlat_to_utm, to_ring_sets
+from .checks import MAX_SPEED_MPS, integer, multiple_of, show
+from .geo import LATLON_MAX_DISTANCE_M, check_latlon, latlon_to_ned
+from .params import Params, PlannerConfig, validate_params
+from .situation import MAX_N_PS
 
 COLAV_MODES = ("none", "psbmpc")
 
@@ -156,7 +159,7 @@ class Scenario:
 # ====================================================================================================== loading
 __all__ = [
     "ShipSpec", "SensorSpec", "MPCSpec", "Scenario", "COLAV_MODES", "KNOT", "SCENARIO_DIR",
-    "scenario_from_dict", "load_scenario", "builtin_scenarios",
+    "scenario_from_dict", "load_scenario", "builtin_scenarios", "estimator_key",
 ]
 
 #: One knot in m/s (exact: 1 international nautical mile = 1852 m).
@@ -173,7 +176,7 @@ CLIP_QUAD_SEGS = 16
 
 
 _TOP_KEYS = ("name", "description", "simulation", "monte_carlo", "collision_distance_m", "mpc", "sensor", "chart",
-             "own_ship", "targets")
+             "origin_latlon", "own_ship", "targets")
 _TOP_REQUIRED = ("name", "simulation", "mpc", "own_ship")
 _SIM_KEYS = ("dt_s", "duration_s")
 _MC_KEYS = ("runs", "seed")
@@ -183,8 +186,9 @@ _SENSOR_KEYS = ("position_std_m", "period_s", "filter_R_scale", "sigma_a_mps2", 
 _COV_KEYS = ("position_var_m2", "velocity_var_m2s2")
 _CHART_KEYS = ("builtin", "file", "polygons_m", "origin_utm", "rdp_eps_m", "clip_m")
 _ORIGIN_KEYS = ("east", "north", "zone")
-_SHIP_KEYS = ("name", "position_m", "position_utm", "course_deg", "speed_mps", "speed_kn", "nominal_speed_mps",
-              "nominal_speed_kn", "waypoints_m", "waypoints_utm", "speed_plan", "length_m", "width_m", "T_chi_s",
+_LATLON_ORIGIN_KEYS = ("lat", "lon")
+_SHIP_KEYS = ("name", "position_m", "position_utm", "position_latlon", "course_deg", "speed_mps", "speed_kn",
+              "nominal_speed_mps", "nominal_speed_kn", "waypoints_m", "waypoints_utm", "waypoints_latlon", "speed_plan", "length_m", "width_m", "T_chi_s",
               "T_U_s", "lookahead_m", "R_a_m", "colav")
 _PLAN_KEYS = ("t_s", "speed_mps", "speed_kn")
 
@@ -215,9 +219,15 @@ def _is_number(v) -> bool:
 
 def _number(v, where: str, *, gt=None, ge=None, le=None) -> float:
     """A finite real number (int or float, not bool), optionally bounded; returned as float."""
-    if not _is_number(v) or not math.isfinite(float(v)):
+    if not _is_number(v):
+        raise ValueError(f"{where} must be a finite number, got {v!r}"[:300])
+    try:
+        x = float(v)
+    except OverflowError:
+        raise ValueError(f"{where} must be a finite number, got an integer with {len(str(abs(int(v))))} digits "
+                         f"(too large)") from None
+    if not math.isfinite(x):
         raise ValueError(f"{where} must be a finite number, got {v!r}")
-    x = float(v)
     if gt is not None and not x > gt:
         raise ValueError(f"{where} must be > {gt:g}, got {v!r}")
     if ge is not None and not x >= ge:
@@ -291,7 +301,12 @@ def _speed(d: dict, keys, where: str, *, required: bool, gt=None, ge=None):
         return None
     x = _number(d[key], _path(where, key), gt=gt, ge=ge)
     # x * 1852 is exact for any speed a file holds, so the result is 1852 x / 3600 correctly rounded
-    return x * 1852.0 / 3600.0 if key.endswith("_kn") else x
+    mps = x * 1852.0 / 3600.0 if key.endswith("_kn") else x
+    if mps > MAX_SPEED_MPS:
+        raise ValueError(f"{_path(where, key)} ({x:g}) is {mps:g} m/s; at most {MAX_SPEED_MPS:g} m/s "
+                         f"({MAX_SPEED_MPS * 3600 / 1852:.1f} kn) allowed -- knots given as m/s (use the _kn key), "
+                         f"or km/h?")
+    return mps
 
 
 # ---------------------------------------------------------------------------------------------- YAML
@@ -337,7 +352,12 @@ def _simulation(d) -> tuple[float, float]:
     d = _mapping(d, "simulation")
     _check_keys(d, _SIM_KEYS, "simulation", required=_SIM_KEYS)
     dt = _number(d["dt_s"], "simulation.dt_s", gt=0)
-    duration = _number(d["duration_s"], "simulation.duration_s", gt=0)
+    duration = _number(d["duration_s"], "simulation.duration_s", gt=0, le=limits.MAX_DURATION_S)
+    if dt > duration:
+        raise ValueError(f"simulation.dt_s ({dt:g}) must be <= simulation.duration_s ({duration:g})")
+    if duration / dt > limits.MAX_STEPS * (1 + 1e-9):
+        raise ValueError(f"simulation.duration_s / simulation.dt_s = {duration / dt:.6g} steps; at most "
+                         f"{limits.MAX_STEPS} allowed (a larger dt_s or a shorter duration_s)")
     multiple_of(duration, dt, "simulation.duration_s", "simulation.dt_s")
     return dt, duration
 
@@ -345,8 +365,8 @@ def _simulation(d) -> tuple[float, float]:
 def _monte_carlo(d) -> tuple[int, int]:
     d = _mapping(d, "monte_carlo")
     _check_keys(d, _MC_KEYS, "monte_carlo")
-    runs = integer(d.get("runs", 20), "monte_carlo.runs", ge=1)
-    seed = integer(d.get("seed", 0), "monte_carlo.seed", ge=0)
+    runs = integer(d.get("runs", 20), "monte_carlo.runs", ge=1, le=limits.MAX_RUNS)
+    seed = integer(d.get("seed", 0), "monte_carlo.seed", ge=0, le=limits.MAX_SEED)
     return runs, seed
 
 
@@ -374,7 +394,9 @@ def _mpc(d, dt: float) -> MPCSpec:
     multiple_of(period, dt, "mpc.update_period_s", "simulation.dt_s")
     n_ps = d.get("n_ps", PRESETS[preset].n_ps)
     if isinstance(n_ps, bool) or not isinstance(n_ps, numbers.Integral) or n_ps < 1 or n_ps % 2 == 0:
-        raise ValueError(f"mpc.n_ps must be an odd integer >= 1, got {n_ps!r}")
+        raise ValueError(f"mpc.n_ps must be an odd integer >= 1, got {n_ps!r}"[:300])
+    if n_ps > MAX_N_PS:
+        raise ValueError(f"mpc.n_ps must be an odd integer <= {MAX_N_PS}, got {show(n_ps)}")
 
     config = dict(_mapping(d.get("config", {}) or {}, "mpc.config"))
     params_in = dict(_mapping(d.get("params", {}) or {}, "mpc.params"))
@@ -400,12 +422,33 @@ def _mpc(d, dt: float) -> MPCSpec:
         if len(speeds) != len(courses):
             raise ValueError(f"mpc.speed_factors and mpc.course_offsets_deg need one set per maneuver, got "
                              f"{len(speeds)} and {len(courses)} sets")
+        if len(speeds) > limits.MAX_MANEUVERS:
+            raise ValueError(f"mpc.speed_factors: {len(speeds)} maneuvers; at most {limits.MAX_MANEUVERS} allowed")
+        n_b = math.prod(len(a) * len(b) for a, b in zip(speeds, courses))
+        if n_b > limits.MAX_BEHAVIOURS:
+            raise ValueError(f"mpc.speed_factors x mpc.course_offsets_deg make {n_b} control behaviours (the product "
+                             f"of all set sizes); at most {limits.MAX_BEHAVIOURS} allowed")
+    for k, v in config.items():
+        if isinstance(v, bool) or (isinstance(v, numbers.Integral) and abs(v) > 10 ** 15):
+            raise ValueError(f"mpc.config.{k} must be a number or a name, got {v!r}"[:200])
     try:
         cfg, prm, behaviours = build_mpc(preset, config, params, speeds, courses)
-    except (ValueError, TypeError) as exc:
+        validate_params(prm, cfg, np.shape(behaviours)[1])
+    except (ValueError, TypeError, OverflowError) as exc:
         raise ValueError(f"mpc ({preset!r} with the file's overrides): {exc}") from None
+    if cfg.dtype == "float64":
+        _enable_x64()
     return MPCSpec(preset=preset, config=cfg, params=prm, behaviours=np.asarray(behaviours, dtype=float),
                    n_ps=int(n_ps), period=period)
+
+
+def _enable_x64() -> None:
+    """``mpc.config.dtype: float64`` needs 64-bit JAX: switch it on now, before any array is built (a process-wide
+    JAX setting; arrays created before keep their dtype)."""
+    import jax
+
+    if not jax.config.jax_enable_x64:
+        jax.config.update("jax_enable_x64", True)
 
 
 def _sensor(d, dt: float) -> SensorSpec:
@@ -468,7 +511,14 @@ def _inline_polygons(v) -> list[Polygon]:
     return out
 
 
-def _chart_source(d, base_dir):
+def _origin_latlon(d) -> tuple[float, float]:
+    o = _mapping(d, "origin_latlon")
+    _check_keys(o, _LATLON_ORIGIN_KEYS, "origin_latlon", required=_LATLON_ORIGIN_KEYS)
+    return check_latlon(_number(o["lat"], "origin_latlon.lat"), _number(o["lon"], "origin_latlon.lon"),
+                        "origin_latlon [lat, lon]")
+
+
+def _chart_source(d, base_dir, origin_ll=None):
     """-> (Chart or None, inline polygons or None, info dict, settings) before ships are known."""
     d = _mapping(d, "chart")
     _check_keys(d, _CHART_KEYS, "chart")
@@ -488,6 +538,8 @@ def _chart_source(d, base_dir):
         info = dict(source="inline chart.polygons_m", origin=None, crs=None)
         return None, polys, info, rdp_eps, clip
     origin = zone = None
+    if "origin_utm" in d and origin_ll is not None:
+        raise ValueError("give the origin once: chart.origin_utm or origin_latlon, not both")
     if "origin_utm" in d:
         o = _mapping(d["origin_utm"], "chart.origin_utm")
         _check_keys(o, _ORIGIN_KEYS, "chart.origin_utm", required=("east", "north"))
@@ -521,8 +573,26 @@ def _chart_source(d, base_dir):
         except (ValueError, FileNotFoundError) as exc:
             raise ValueError(f"chart.file {f!r}: {exc}") from None
         source = str(p)
+    if origin_ll is not None:  # the geographic origin, projected to the chart's UTM zone
+        info_crs = chart.crs_info
+        e, n = lonlat_to_utm(origin_ll[1], origin_ll[0], chart.zone, south=info_crs.south, datum=info_crs.datum)
+        chart = chart.with_origin((float(e), float(n)))
+        _check_chart_near_origin(chart, "origin_latlon")
     info = dict(source=source, origin=tuple(chart.origin), crs=chart.crs)
     return chart, None, info, rdp_eps, clip
+
+
+def _check_chart_near_origin(chart, what: str) -> None:
+    from .charts import MAX_ORIGIN_DISTANCE_M
+
+    if not chart.polygons:
+        return
+    b = np.array(shapely.total_bounds(np.array(chart.polygons, dtype=object)))   # (n_min, e_min, n_max, e_max)
+    d = float(np.hypot(*np.maximum(0.0, np.maximum(b[:2], -b[2:]))))
+    if d > MAX_ORIGIN_DISTANCE_M:
+        raise ValueError(f"{what}: the chart lies {d / 1000:.0f} km from this origin; at most "
+                         f"{MAX_ORIGIN_DISTANCE_M / 1000:.0f} km allowed -- origin_latlon is {{lat, lon}} in degrees; "
+                         f"check the chart's CRS and coordinate order")
 
 
 def route_geometry(ship: ShipSpec):
@@ -566,11 +636,45 @@ def _ship(d, where: str, *, own: bool, ctx: dict) -> ShipSpec:
             raise ValueError(f"{where}.{key}: UTM coordinates need a builtin or file chart (its origin converts "
                              f"them to local NED); use {key.replace('_utm', '_m')} [north, east] instead")
 
-    pkey = _one_of(d, ("position_m", "position_utm"), where, required=True)
+    def from_latlon(ll: np.ndarray, key: str) -> np.ndarray:
+        """[n, 2] (lat, lon) degrees -> [n, 2] NED (the chart's UTM zone, or the local TM about origin_latlon)."""
+        for k, (la, lo) in enumerate(ll):
+            check_latlon(la, lo, f"{where}.{key}" + (f"[{k}]" if key.startswith("waypoints") else ""))
+        if chart is not None:
+            ci = chart.crs_info
+            e, n = lonlat_to_utm(ll[:, 1], ll[:, 0], chart.zone, south=ci.south, datum=ci.datum)
+            return chart.utm_to_local(np.stack([e, n], axis=-1))
+        o = ctx["origin_latlon"]
+        if o is None:
+            raise ValueError(f"{where}.{key}: lat/lon positions need origin_latlon {{lat, lon}} (the geographic "
+                             f"position of the NED origin) or a builtin / file chart")
+        ned = latlon_to_ned(ll[:, 0], ll[:, 1], o[0], o[1])
+        far = np.hypot(ned[:, 0], ned[:, 1])
+        if far.max() > LATLON_MAX_DISTANCE_M:
+            k = int(np.argmax(far))
+            raise ValueError(f"{where}.{key}: [{ll[k, 0]:g}, {ll[k, 1]:g}] lies {far[k] / 1000:.0f} km from "
+                             f"origin_latlon; at most {LATLON_MAX_DISTANCE_M / 1000:.0f} km allowed (local projection) "
+                             f"-- positions are [lat, lon], not [lon, lat]")
+        return ned
+
+    def near_origin(pts: np.ndarray, key: str) -> None:
+        dist = np.hypot(pts[..., 0], pts[..., 1]).reshape(-1)
+        if dist.max() > limits.MAX_POSITION_M:
+            k = int(np.argmax(dist))
+            hint = {"_utm": "UTM is [east, north] in the chart's zone", "_latlon": "positions are [lat, lon]",
+                    "_m": "local metres [north, east] about the origin"}[key[key.rindex("_"):]]
+            raise ValueError(f"{where}.{key}" + (f"[{k}]" if pts.ndim == 2 else "") + f" lies {dist[k] / 1000:.0f} "
+                             f"km from the scenario's origin; at most {limits.MAX_POSITION_M / 1000:.0f} km allowed -- "
+                             f"{hint}")
+
+    pkey = _one_of(d, ("position_m", "position_utm", "position_latlon"), where, required=True)
     pos = _point(d[pkey], f"{where}.{pkey}")
     if pkey == "position_utm":
         utm_allowed(pkey)
         pos = chart.utm_to_local(pos)
+    elif pkey == "position_latlon":
+        pos = from_latlon(pos[None, :], pkey)[0]
+    near_origin(pos, pkey)
     course_deg = _number(d["course_deg"], f"{where}.course_deg")
     course = _course_rad(course_deg)
     speed = _speed(d, ("speed_mps", "speed_kn"), where, required=True, ge=0)
@@ -587,6 +691,8 @@ def _ship(d, where: str, *, own: bool, ctx: dict) -> ShipSpec:
     plan = None
     if "speed_plan" in d:
         sp = d["speed_plan"]
+        if isinstance(sp, (list, tuple)) and len(sp) > limits.MAX_WAYPOINTS:
+            raise ValueError(f"{where}.speed_plan: {len(sp)} entries; at most {limits.MAX_WAYPOINTS} allowed")
         if not isinstance(sp, (list, tuple)) or not sp:
             raise ValueError(f"{where}.speed_plan must be a non-empty list of {{t_s, speed_mps | speed_kn}} "
                              f"(leave it out for a constant nominal speed), got {sp!r}")
@@ -605,16 +711,21 @@ def _ship(d, where: str, *, own: bool, ctx: dict) -> ShipSpec:
             rows.append((t, _speed(e, ("speed_mps", "speed_kn"), w, required=True, ge=0)))
         plan = np.array(rows, dtype=float)
 
-    wkey = _one_of(d, ("waypoints_m", "waypoints_utm"), where, required=False)
+    wkey = _one_of(d, ("waypoints_m", "waypoints_utm", "waypoints_latlon"), where, required=False)
     if wkey is None:
         U_max = max([speed, U_d] + ([] if plan is None else list(plan[:, 1])))
         length = max(2.0 * U_max * ctx["duration"], DEFAULT_ROUTE_MIN_M)
         wps = np.stack([pos, pos + length * _direction(course_deg)])
     else:
+        if isinstance(d[wkey], (list, tuple)) and len(d[wkey]) > limits.MAX_WAYPOINTS:
+            raise ValueError(f"{where}.{wkey}: {len(d[wkey])} waypoints; at most {limits.MAX_WAYPOINTS} allowed")
         wps = _points(d[wkey], f"{where}.{wkey}", min_n=1)
         if wkey == "waypoints_utm":
             utm_allowed(wkey)
             wps = chart.utm_to_local(wps)
+        elif wkey == "waypoints_latlon":
+            wps = from_latlon(wps, wkey)
+        near_origin(wps, wkey)
         if len(wps) == 1:
             wps = np.vstack([pos[None, :], wps])
         same = np.flatnonzero(np.all(wps[1:] == wps[:-1], axis=1))
@@ -630,19 +741,22 @@ def _ship(d, where: str, *, own: bool, ctx: dict) -> ShipSpec:
     def opt(key, default, **bounds):
         return _number(d[key], f"{where}.{key}", **bounds) if key in d else float(default)
 
-    return ShipSpec(
+    spec = ShipSpec(
         name=name, position=pos, course=course, speed=speed, waypoints=np.asarray(wps, dtype=float), U_d=U_d,
         speed_plan=plan,
-        length=opt("length_m", 5.0, gt=0), width=opt("width_m", 3.0, gt=0),
+        length=opt("length_m", 5.0, gt=0, le=limits.MAX_SHIP_LENGTH_M),
+        width=opt("width_m", 3.0, gt=0, le=limits.MAX_SHIP_WIDTH_M),
         T_chi=opt("T_chi_s", getattr(prm, pre + "T_chi"), gt=0), T_U=opt("T_U_s", getattr(prm, pre + "T_U"), gt=0),
         lookahead=opt("lookahead_m", getattr(prm, pre + "lookahead"), gt=0),
         R_a=opt("R_a_m", getattr(prm, pre + "R_a"), ge=0),
         colav=colav,
     )
+    ctx.setdefault("default_routes", []).append(wkey is None)
+    return spec
 
 
 # ---------------------------------------------------------------------------------------------- public API
-def scenario_from_dict(data: dict, base_dir=None, source: str | None = None) -> Scenario:
+def scenario_from_dict(data: dict, base_dir=None, source: str | None = None, *, land_checks: str = "warn") -> Scenario:
     """Validate a scenario mapping (the parsed YAML, schema in ``docs/scenarios.md``) and build a
     :class:`Scenario` in SI units, radians and the local NED frame.
 
@@ -650,12 +764,20 @@ def scenario_from_dict(data: dict, base_dir=None, source: str | None = None) -> 
         data: the mapping; not modified.
         base_dir: folder that ``chart.file`` is relative to (default: the current directory).
         source: recorded in ``Scenario.source`` (the file path).
+        land_checks: what to do with the geometry problems of
+            :func:`psbmpc_jax.scenario_checks.land_issues` (a ship starting on land, a waypoint on land, a route
+            leg through land, two ships starting closer than the collision distance): ``"error"`` raises
+            ``ValueError`` (what :func:`load_scenario` does), ``"warn"`` (default here) issues a
+            :class:`~psbmpc_jax.scenario_checks.ScenarioWarning` per problem, ``"off"`` skips the checks.
 
     Raises:
         ValueError: unknown or missing keys, wrong types, non-finite numbers, values out of range, unit
             alternatives given twice, times that are not multiples of ``simulation.dt_s``, bad overrides, bad
-            charts -- the message names the key and says what is allowed.
+            charts, sizes above the limits of :mod:`psbmpc_jax.scenario_checks` -- the message names the key and
+            says what is allowed.
     """
+    if land_checks not in ("error", "warn", "off"):
+        raise ValueError(f"land_checks must be 'error', 'warn' or 'off', got {land_checks!r}")
     data = copy.deepcopy(_mapping(data, "the scenario"))
     _check_keys(data, _TOP_KEYS, "the scenario (top level)", required=_TOP_REQUIRED)
     name = _string(data["name"], "name")
@@ -669,20 +791,33 @@ def scenario_from_dict(data: dict, base_dir=None, source: str | None = None) -> 
     coll = None
     if "collision_distance_m" in data:
         coll = _number(data["collision_distance_m"], "collision_distance_m", gt=0)
+    origin_ll = _origin_latlon(data["origin_latlon"]) if "origin_latlon" in data else None
 
     chart = inline = None
     info = dict(source=None, origin=None, crs=None)
     rdp_eps = clip = None
     if "chart" in data:
-        chart, inline, info, rdp_eps, clip = _chart_source(data["chart"], base_dir)
+        chart, inline, info, rdp_eps, clip = _chart_source(data["chart"], base_dir, origin_ll)
+    info["origin_latlon"] = origin_ll
 
-    ctx = dict(chart=chart, duration=duration, params=mpc.params)
-    own = _ship(data["own_ship"], "own_ship", own=True, ctx=ctx)
     tl = data.get("targets", [])
     if tl is None:
         tl = []
     if not isinstance(tl, (list, tuple)):
         raise ValueError(f"targets must be a list of ships, got {type(tl).__name__}")
+    if len(tl) + 1 > limits.MAX_SHIPS:
+        raise ValueError(f"targets: {len(tl)} target ships; at most {limits.MAX_SHIPS - 1} allowed (plus the "
+                         f"own-ship)")
+    n_steps = int(round(duration / dt))
+    mem = limits.simulation_memory_bytes(n_steps, runs, len(tl) + 1)
+    if mem > limits.MAX_SIM_MEMORY_BYTES:
+        raise ValueError(f"monte_carlo.runs ({runs}) x {n_steps + 1} steps (simulation.duration_s / dt_s) x "
+                         f"{len(tl) + 1} ships need about {mem / 1024 ** 3:.1f} GiB of simulator memory; at most "
+                         f"{limits.MAX_SIM_MEMORY_BYTES / 1024 ** 3:.0f} GiB allowed -- fewer runs, a shorter "
+                         f"duration_s or a larger dt_s")
+
+    ctx = dict(chart=chart, duration=duration, params=mpc.params, origin_latlon=origin_ll)
+    own = _ship(data["own_ship"], "own_ship", own=True, ctx=ctx)
     targets = tuple(_ship(t, f"targets[{i}]", own=False, ctx=ctx) for i, t in enumerate(tl))
     seen = {own.name: "own_ship"}
     for i, t in enumerate(targets):
@@ -694,24 +829,70 @@ def scenario_from_dict(data: dict, base_dir=None, source: str | None = None) -> 
     # land: loaded -> RDP (builtin / file charts) -> clip about the routes -> ring sets
     polys: list[Polygon] = list(chart.polygons) if chart is not None else list(inline or ())
     info.update(n_polygons_loaded=len(polys), n_vertices_loaded=count_vertices(polys))
+    if chart is not None:
+        labels = [f"chart polygon {j}, feature {fid}" + (f" of layer {lay!r}" if lay else "")
+                  for j, (fid, lay) in enumerate(zip(chart.ids, chart.layers))]
+    else:
+        labels = [f"chart.polygons_m[{j}]" for j in range(len(polys))]
+    roles = [f"own-ship {own.name!r}"] + [f"target {t.name!r} (targets[{i}])" for i, t in enumerate(targets)]
+    d_coll = float(mpc.params.d_safe if coll is None else coll)
+
+    close = limits.start_distance_errors((own,) + targets, roles, d_coll)
+    if close:
+        raise ValueError(close[0] if len(close) == 1 else f"{len(close)} pairs of ships start too close: "
+                         + "; ".join(close[:5]))
+    reported: set = set()
+
+    def land_check(variant, first):
+        if land_checks == "off":
+            return
+        errors, warns = limits.land_issues((own,) + targets, roles, [variant], duration=duration,
+                                           default_routes=ctx.get("default_routes", ()), ship_pairs=first)
+        fresh = [m for m in errors + warns if not any(m.startswith(r) for r in reported)]
+        errors, warns = [m for m in errors if m in fresh], [m for m in warns if m in fresh]
+        reported.update(r for r in roles for m in errors + warns if m.startswith(r))
+        limits.report_land_issues(errors, warns, land_checks)
+
+    land_check(limits.LandVariant(polys, labels), True)       # before RDP: a start on land fails fast
     if chart is not None and rdp_eps is not None:
         from .rdp import simplify_chart
 
+        loaded_chart = chart
         chart = simplify_chart(chart, rdp_eps)
         polys = list(chart.polygons)
         info.update(n_vertices_rdp=count_vertices(polys),
                     rdp_degenerate_kept=int(chart.report.get("rdp_degenerate_kept", 0)),
                     rdp_holes_dropped=int(chart.report.get("rdp_holes_dropped", 0)))
+        same = len(polys) == len(loaded_chart.polygons)
+        land_check(limits.LandVariant(polys, labels if same else [f"simplified chart polygon {j}"
+                                                                  for j in range(len(polys))],
+                                      f", as simplified with rdp_eps_m = {rdp_eps:g}"), False)
     if clip is not None:
         polys, clip_info = _clip(polys, (own,) + targets, clip)
         info.update(clip_info)
 
+    for j, q in enumerate(polys):   # what Situation (the planner) will accept: RDP can make rings self-intersect
+        if not q.is_valid:
+            raise ValueError(f"chart: polygon {j} of the land as simplified (rdp_eps_m = {rdp_eps}) and clipped is not "
+                             f"a valid simple polygon ({shapely.validation.explain_validity(q)}); the planner refuses "
+                             f"it -- use a smaller chart.rdp_eps_m")
     rings = tuple(tuple(np.asarray(r, dtype=float) for r in rs) for rs in to_ring_sets(polys)) if polys else ()
     info.update(rdp_eps_m=rdp_eps, clip_m=clip, n_polygons=len(rings),
                 n_vertices=int(sum(len(r) for rs in rings for r in rs)))
     return Scenario(name=name, description=description, own_ship=own, targets=targets, sensor=sensor, mpc=mpc,
                     polygons=rings, chart_info=info, dt=dt, duration=duration, runs=runs, seed=seed,
                     collision_distance=coll, source=source)
+
+
+def estimator_key(scenario: Scenario, seed: int | None = None):
+    """The PRNG key of the ``mc`` / ``ce`` estimators for a scenario run: ``jax.random.key(seed)`` with the
+    scenario's ``monte_carlo.seed`` (or ``seed``); ``None`` for the ``quadrature`` estimator (it draws nothing)."""
+    if scenario.mpc.config.estimator == "quadrature":
+        return None
+    import jax
+
+    seed = integer(scenario.seed if seed is None else seed, "seed", ge=0, le=limits.MAX_SEED)
+    return jax.random.key(seed)
 
 
 def builtin_scenarios() -> list[str]:
@@ -730,9 +911,13 @@ def _builtin_path(name: str) -> pathlib.Path:
                      f"(or give the path of a .yaml / .yml file)")
 
 
-def load_scenario(path_or_name) -> Scenario:
+def load_scenario(path_or_name, *, land_checks: str = "error") -> Scenario:
     """Load and validate a scenario: a path to a ``.yaml`` / ``.yml`` file, or the name of a built-in scenario
     (:func:`builtin_scenarios`, e.g. ``"head_on"``, ``"imazu_01"``).
+
+    Everything is checked before anything is simulated or compiled, the land geometry included
+    (``land_checks="error"``: a ship starting on land, a waypoint or route leg on or through land, two ships
+    starting closer than the collision distance raise; see :func:`scenario_from_dict`).
 
     Raises:
         ValueError: unknown built-in name (the message lists them), invalid YAML or an invalid scenario.
@@ -761,6 +946,6 @@ def load_scenario(path_or_name) -> Scenario:
         raise ValueError(f"{where}: a scenario file must hold a mapping at the top level, got "
                          f"{type(data).__name__}")
     try:
-        return scenario_from_dict(data, base_dir=path.parent, source=where)
+        return scenario_from_dict(data, base_dir=path.parent, source=where, land_checks=land_checks)
     except ValueError as exc:
         raise ValueError(f"{where}: {exc}") from None

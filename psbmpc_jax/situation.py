@@ -11,7 +11,13 @@ Frame: NED — x north, y east [m]; courses from north, clockwise positive [rad]
   each a ring of vertices ``[n, 2]``, implicitly closed, or a tuple of such rings — outer ring and holes —
   combined with the even-odd rule).
 
-Every constructor validates its input and raises ``ValueError`` naming the field and what is allowed.
+Every constructor validates its input and raises ``ValueError`` naming the field and what is allowed:
+booleans and strings where numbers belong, a course with ``|chi| > 2 pi`` (degrees passed by mistake; use
+``np.deg2rad``), speeds above :data:`psbmpc_jax.checks.MAX_SPEED_MPS` (30 m/s) for the own-ship and above
+:data:`MAX_OBSTACLE_SPEED_MPS` (60 m/s: tracker estimates are noisy) for obstacles, ``None`` or a single
+:class:`Obstacle` / ring where a tuple or list belongs, and polygons that are not valid simple polygons
+(self-intersecting rings, zero area, holes outside their outer ring or overlapping each other:
+``shapely.validation.explain_validity`` says why).  NumPy scalars and arrays are accepted everywhere.
 """
 
 from __future__ import annotations
@@ -21,6 +27,16 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import checks
+
+#: Highest obstacle speed estimate accepted [m/s]: twice the ship speed limit, since tracker estimates are noisy.
+MAX_OBSTACLE_SPEED_MPS = 2.0 * checks.MAX_SPEED_MPS
+
+#: Most prediction scenarios per obstacle.
+MAX_N_PS = 99
+
+#: Validity verdicts of polygons already checked (content key -> None or the reason); bounded.
+_VALIDITY_CACHE: dict = {}
+_VALIDITY_CACHE_SIZE = 4096
 
 
 def _check_psd(P: np.ndarray, name: str) -> None:
@@ -38,11 +54,70 @@ def _ring(value, name: str) -> np.ndarray:
     return arr
 
 
+def _validity(rings: tuple) -> str | None:
+    """Why the rings (outer ring, holes) are not a valid polygon, or ``None`` (shapely; cached by content)."""
+    key = tuple((r.shape, r.tobytes()) for r in rings)
+    if key in _VALIDITY_CACHE:
+        return _VALIDITY_CACHE[key]
+    import shapely
+    import shapely.validation
+    from shapely.geometry import Polygon
+
+    why = None
+    poly = Polygon(rings[0], rings[1:])
+    if not poly.is_valid:
+        why = shapely.validation.explain_validity(poly)
+    elif Polygon(rings[0]).area <= 0.0:
+        why = "zero area (collinear vertices)"
+    else:
+        for k, h in enumerate(rings[1:], start=1):
+            if Polygon(h).area <= 0.0:
+                why = f"hole (ring {k}) has zero area"
+                break
+    if len(_VALIDITY_CACHE) >= _VALIDITY_CACHE_SIZE:
+        _VALIDITY_CACHE.clear()
+    _VALIDITY_CACHE[key] = why
+    return why
+
+
 def _polygon(value, name: str):
-    """A polygon is one ring ``[n, 2]`` or a tuple of rings (outer ring first, then holes)."""
+    """A polygon is one ring ``[n, 2]`` or a tuple of rings (outer ring first, then holes); it must be a valid
+    simple polygon (shapely ``is_valid``, non-zero area; holes inside the outer ring)."""
+    if value is None:
+        raise ValueError(f"{name} must be a ring [n >= 3, 2] (north, east) or a tuple (outer ring, holes...), "
+                         f"got None")
     if isinstance(value, (list, tuple)) and len(value) > 0 and np.ndim(value[0]) == 2:
-        return tuple(_ring(r, f"{name}[{k}]") for k, r in enumerate(value))
-    return _ring(value, name)
+        out = tuple(_ring(r, f"{name}[{k}]") for k, r in enumerate(value))
+        rings = out
+    else:
+        out = _ring(value, name)
+        rings = (out,)
+    why = _validity(rings)
+    if why is not None:
+        what = "outer ring + holes" if len(rings) > 1 else "ring"
+        raise ValueError(f"{name} ({what}) is not a valid simple polygon: {why}; allowed: a non-self-intersecting "
+                         f"outer ring with non-zero area and holes inside it (repair with shapely.make_valid, or a "
+                         f"smaller RDP epsilon)")
+    return out
+
+
+def _safe_ndim(value) -> int:
+    try:
+        return int(np.ndim(value))
+    except ValueError:      # ragged (a tuple of rings of different lengths)
+        return -1
+
+
+def _sequence(value, name: str, item: str, single_type=None) -> tuple:
+    """A tuple or list (NumPy arrays of items accepted) -> tuple; ``None`` and a single item are refused."""
+    if value is None:
+        raise ValueError(f"{name} must be a tuple/list of {item} (use () for none), got None")
+    if single_type is not None and isinstance(value, single_type):
+        raise ValueError(f"{name} must be a tuple/list of {item}, got a single {type(value).__name__}; pass a "
+                         f"tuple/list of {item}, e.g. ({name.split('.')[-1][:-1]},)")
+    if isinstance(value, (str, bytes, dict)) or not hasattr(value, "__iter__"):
+        raise ValueError(f"{name} must be a tuple/list of {item}, got {type(value).__name__}")
+    return tuple(value)
 
 
 def polygon_rings(polygon) -> tuple[np.ndarray, ...]:
@@ -76,9 +151,11 @@ class OwnShip:
         state = checks.finite_array(self.state, "own_ship.state", (4,))
         if state[3] < 0:
             raise ValueError(f"own_ship.state speed U must be >= 0 m/s, got {state[3]}")
+        checks.course(state[2], "own_ship.state course chi (state[2], radians)")
+        checks.speed(state[3], "own_ship.state speed U (state[3])")
         object.__setattr__(self, "state", state)
         object.__setattr__(self, "waypoints", checks.waypoints(self.waypoints, "own_ship.waypoints", 2))
-        object.__setattr__(self, "U_d", checks.positive(self.U_d, "own_ship.U_d", allow_zero=True))
+        object.__setattr__(self, "U_d", checks.speed(self.U_d, "own_ship.U_d"))
         object.__setattr__(self, "length", checks.positive(self.length, "own_ship.length"))
         object.__setattr__(self, "width", checks.positive(self.width, "own_ship.width"))
 
@@ -109,7 +186,13 @@ class Obstacle:
     zeta: float = 1.0
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "state", checks.finite_array(self.state, "obstacle.state", (4,)))
+        state = checks.finite_array(self.state, "obstacle.state", (4,))
+        v = float(np.hypot(state[2], state[3]))
+        if v > MAX_OBSTACLE_SPEED_MPS:
+            raise ValueError(f"obstacle.state velocity (V_x, V_y) = ({state[2]:g}, {state[3]:g}) is {v:g} m/s; at "
+                             f"most {MAX_OBSTACLE_SPEED_MPS:g} m/s allowed (state is [x, y, V_x, V_y] in m and m/s: "
+                             f"knots or km/h given as m/s, or [x, y, course, speed] by mistake?)")
+        object.__setattr__(self, "state", state)
         cov = checks.finite_array(self.cov, "obstacle.cov", (4, 4))
         _check_psd(cov, "obstacle.cov")
         pos_eig = np.linalg.eigvalsh(0.5 * (cov[:2, :2] + cov[:2, :2].T))
@@ -124,8 +207,11 @@ class Obstacle:
         if self.waypoints is not None:
             object.__setattr__(self, "waypoints", checks.waypoints(self.waypoints, "obstacle.waypoints", 2))
         n_ps = self.n_ps
-        if isinstance(n_ps, bool) or not isinstance(n_ps, (int, np.integer)) or n_ps < 1 or n_ps % 2 == 0:
+        if (isinstance(n_ps, (bool, np.bool_)) or not isinstance(n_ps, (int, np.integer)) or n_ps < 1
+                or n_ps % 2 == 0):
             raise ValueError(f"obstacle.n_ps must be an odd integer >= 1, got {n_ps!r}")
+        if n_ps > MAX_N_PS:
+            raise ValueError(f"obstacle.n_ps must be an odd integer <= {MAX_N_PS}, got {checks.show(n_ps)}")
         object.__setattr__(self, "n_ps", int(n_ps))
         if self.probs is None:
             probs = np.full(n_ps, 1.0 / n_ps)
@@ -151,12 +237,20 @@ class Situation:
     def __post_init__(self) -> None:
         if not isinstance(self.own_ship, OwnShip):
             raise ValueError(f"situation.own_ship must be an OwnShip, got {type(self.own_ship).__name__}")
-        obstacles = tuple(self.obstacles)
+        obstacles = _sequence(self.obstacles, "situation.obstacles", "Obstacle", Obstacle)
         for i, ob in enumerate(obstacles):
             if not isinstance(ob, Obstacle):
                 raise ValueError(f"situation.obstacles[{i}] must be an Obstacle, got {type(ob).__name__}")
         object.__setattr__(self, "obstacles", obstacles)
+        polygons = self.polygons
+        if isinstance(polygons, np.ndarray) and polygons.ndim == 2:
+            raise ValueError(f"situation.polygons must be a tuple/list of polygons, got one array of shape "
+                             f"{polygons.shape}; pass (ring,) for a single polygon")
+        if isinstance(polygons, (list, tuple)) and len(polygons) > 0 and _safe_ndim(polygons[0]) == 1:
+            raise ValueError(f"situation.polygons must be a tuple/list of polygons, got a single ring of "
+                             f"{len(polygons)} points; pass (ring,) for a single polygon")
         polys = []
-        for j, poly in enumerate(self.polygons):
+        for j, poly in enumerate(_sequence(polygons, "situation.polygons", "polygons (rings [n, 2] or tuples of "
+                                           "rings)")):
             polys.append(_polygon(poly, f"situation.polygons[{j}]"))
         object.__setattr__(self, "polygons", tuple(polys))

@@ -696,7 +696,7 @@ def test_documented_example_loads(tmp_path):
     assert s.mpc.n_ps == 3 and s.mpc.config.T == 100 and s.mpc.params.wind_dir == math.pi / 4
     assert s.mpc.behaviours.shape == (2 * 5 * 3, 2, 2) and s.d_collision == 6.0
     ferry, anchored = s.targets
-    np.testing.assert_array_equal(ferry.waypoints, [[120.0, 140.0], [120.0, -200.0]])
+    np.testing.assert_array_equal(ferry.waypoints, [[-260.0, -82.0], [-60.0, 1.0]])
     assert anchored.speed == 0.0 and anchored.colav == "none" and anchored.length == 12.0
     assert s.chart_info["origin"] == (570210.0, 7034815.0) and s.chart_info["n_polygons"] == len(s.polygons) > 0
 
