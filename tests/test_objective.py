@@ -201,14 +201,17 @@ def _finite_everywhere(sit, cfg=None, params=Params()):
         total, costs = objective(x, inputs, p, samples, cfg)
         return jnp.stack([total] + [costs[n] for n in TERM_NAMES])
 
-    v = np.asarray(f(c))
-    jac = np.asarray(jax.jacrev(f)(c))
-    _, t = jax.jvp(f, (c,), (jnp.ones_like(c),))
+    @jax.jit        # one compiled program for value, reverse and forward mode (eager dispatch is far slower)
+    def all_modes(x):
+        v, t = jax.jvp(f, (x,), (jnp.ones_like(x),))
+        return v, jax.jacrev(f)(x), t
+
+    v, jac, t = (np.asarray(a) for a in all_modes(c))
     for k, name in enumerate(("total",) + TERM_NAMES):
         assert np.isfinite(v[k]), name
         assert np.all(np.isfinite(jac[k])), (name, jac[k])
         assert np.isfinite(float(t[k])), name
-    return objective(c, inputs, p, samples, cfg)
+    return float(v[0]), dict(zip(TERM_NAMES, (float(a) for a in v[1:])))
 
 
 OWN = OwnShip([0.0, 0.0, 0.0, 2.0], [[0.0, 0.0], [500.0, 0.0]], 2.0)
