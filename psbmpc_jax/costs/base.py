@@ -66,17 +66,29 @@ class TermValue(NamedTuple):
     counters: dict = {}
 
 
-def cost_term(cls):
-    """Class decorator: a frozen dataclass whose fields are the term's parameters, registered as a pytree
-    (fields are leaves; the class — and so its name and code — is static)."""
-    cls = dataclasses.dataclass(frozen=True)(cls)
-    names = tuple(f.name for f in dataclasses.fields(cls))
-    jax.tree_util.register_pytree_node(
-        cls, lambda obj: (tuple(getattr(obj, n) for n in names), None),
-        lambda _, leaves: cls(**dict(zip(names, leaves))))
-    if not isinstance(getattr(cls, "name", None), str) or not cls.name.isidentifier():
-        raise ValueError(f"cost term {cls.__name__} must define a class attribute name (an identifier)")
-    return cls
+def cost_term(cls=None, *, static: tuple[str, ...] = ()):
+    """Class decorator: a frozen dataclass whose fields are the term's parameters, registered as a pytree.
+
+    Fields are traced leaves (a new value never recompiles and can be differentiated), except those named in
+    ``static`` (strings such as an aggregation mode, integer sizes): static pytree data, so changing one
+    recompiles.  Use as ``@cost_term`` or ``@cost_term(static=("aggregation",))``."""
+
+    def deco(cls):
+        cls = dataclasses.dataclass(frozen=True)(cls)
+        names = tuple(f.name for f in dataclasses.fields(cls))
+        unknown = [s for s in static if s not in names]
+        if unknown:
+            raise ValueError(f"static fields {unknown} are not fields of {cls.__name__}")
+        leaves = tuple(n for n in names if n not in static)
+        jax.tree_util.register_pytree_node(
+            cls, lambda obj: (tuple(getattr(obj, n) for n in leaves), tuple(getattr(obj, n) for n in static)),
+            lambda aux, ch: cls(**dict(zip(leaves, ch)), **dict(zip(static, aux))))
+        if not isinstance(getattr(cls, "name", None), str) or not cls.name.isidentifier():
+            raise ValueError(f"cost term {cls.__name__} must define a class attribute name (an identifier)")
+        cls.STATIC = tuple(static)
+        return cls
+
+    return deco if cls is None else deco(cls)
 
 
 RESERVED_NAMES = ("total",)
