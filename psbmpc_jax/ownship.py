@@ -70,7 +70,7 @@ def _take(table, idx):
 
 
 def los_rollout(x0, path: Path, chi_offsets, U_cmd, lateral_offset, lookahead, R_a, T_chi, T_U, dt,
-                unroll: int = 1) -> Trajectory:
+                unroll: int = 1, z0=None, return_segment: bool = False):
     """Roll the kinematic model with LOS guidance forward N steps for R rows.
 
     Args:
@@ -79,6 +79,11 @@ def los_rollout(x0, path: Path, chi_offsets, U_cmd, lateral_offset, lookahead, R
         chi_offsets, U_cmd: per-step course offset and speed reference, ``[N, R]`` (time-major).
         lateral_offset: per-row lateral path offset ``[R]`` (positive = starboard).
         lookahead, R_a, T_chi, T_U, dt: scalars.
+        z0: optional initial active segment per row ``[R]`` (int32; default 0, the first segment).
+        return_segment: also return the active segment used at each emitted state, ``[N+1, R]`` (a
+            closed loop that steps one state at a time carries it to the next call as ``z0``).
+
+    Returns the :class:`Trajectory` (and the segments when ``return_segment``).
     """
     n_rows = x0.shape[0]
     last_seg = path.n - 2
@@ -106,13 +111,15 @@ def los_rollout(x0, path: Path, chi_offsets, U_cmd, lateral_offset, lookahead, R
         chi_new = wrap_angle(chi + (dt / T_chi) * wrap_angle(chi_cmd - chi))
         U_new = U + (dt / T_U) * (u_ref - U)
         # emit the state *before* the update: N+1 steps give states 0..N without a concatenate
-        return (x_new, y_new, chi_new, U_new, z), (x, y, chi, U, c, s)
+        return (x_new, y_new, chi_new, U_new, z), (x, y, chi, U, c, s, z)
 
     # the initial course is kept as given (not wrapped): +pi and -pi differ in the first Euler step's rounding
-    init = (x0[:, 0], x0[:, 1], x0[:, 2], x0[:, 3], jnp.zeros(n_rows, jnp.int32))
+    z_init = jnp.zeros(n_rows, jnp.int32) if z0 is None else jnp.broadcast_to(jnp.asarray(z0, jnp.int32), (n_rows,))
+    init = (x0[:, 0], x0[:, 1], x0[:, 2], x0[:, 3], z_init)
     xs = (jnp.concatenate([chi_offsets, chi_offsets[-1:]]), jnp.concatenate([U_cmd, U_cmd[-1:]]))
     _, outs = jax.lax.scan(step, init, xs, unroll=unroll)      # one extra (discarded) update at the end
-    return Trajectory(*outs)
+    traj = Trajectory(*outs[:6])
+    return (traj, outs[6]) if return_segment else traj
 
 
 def maneuver_index(n_steps: int, n_m: int, t_ts, dt):

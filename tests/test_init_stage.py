@@ -1,0 +1,129 @@
+"""Smooth-SBMPC initialisation stage (psbmpc_jax/smooth/init_stage.py), float64.
+
+The jitted scan equals an independent float64 loop of Algorithms 1-2 (NumPy LOS rollout of the reference,
+reference_smooth costs, shapely N_TP); Ψ is reproduced by rolling out its own offsets (a feasible warm start);
+the scan does not recompile when weights change; a head-on target gives a starboard turn; land across the
+route is avoided through the N_TP penalty; bad settings are refused."""
+
+from __future__ import annotations
+
+import math
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+import shapely
+
+from psbmpc_jax import reference as ref
+from psbmpc_jax import reference_smooth as rs
+from psbmpc_jax.packing import pack_world
+from psbmpc_jax.params import PlannerConfig
+from psbmpc_jax.smooth.init_stage import (COURSE_OFFSETS_DEG, SPEED_FACTORS, ShipModel, SmoothSettings, SmoothWeights,
+                                          _init_stage_jit, init_stage, rollout_controls, route_path)
+
+CFG = PlannerConfig(dtype="float64")
+SETTINGS = SmoothSettings(T_init=8.0, T_mpc=4.0, dt=1.0, n_y=101)
+MODEL = ShipModel()
+
+
+def chart_of(polys):
+    return pack_world(polys, CFG).polygons
+
+
+def oracle_n_tp(traj, polys, r_dom):
+    """First index j whose domain disc meets land or whose segment from j-1 meets land (shapely)."""
+    land = shapely.unary_union([shapely.Polygon(p) for p in polys]) if polys else None
+    for j in range(len(traj)):
+        if land is None:
+            break
+        pt = shapely.Point(traj[j])
+        if land.distance(pt) <= r_dom:
+            return j
+        if j > 0 and shapely.LineString([traj[j - 1], traj[j]]).intersects(land):
+            return j
+    return len(traj) - 1
+
+
+def oracle_init_stage(state0, route, targets, last, polys, w: SmoothWeights, s: SmoothSettings, m: ShipModel):
+    """Algorithms 1-2 as plain float64 loops (route LOS re-evaluated along each prediction, C-000-11)."""
+    n = s.n_init
+    t = np.arange(n + 1) * s.dt
+    table = [(u, math.radians(c)) for c in COURSE_OFFSETS_DEG for u in SPEED_FACTORS]
+    state, tg, lst = np.asarray(state0, float), np.asarray(targets, float), np.asarray(last, float)
+    psi, controls = [state], []
+    kw = dict(d_safe=w.d_safe, K_coll=w.K_coll, p=w.p, q=w.q, w_coll=w.w_coll, kappa=w.kappa, d_cl=w.d_cl,
+              e_cl=w.e_cl, eps=w.eps, n_y=s.n_y, completion=s.fis_completion)
+    gw = dict(k_U=w.k_U, k_chi_port=w.k_chi_port, k_chi_stbd=w.k_chi_stbd, Delta_U=w.Delta_U,
+              Delta_chi_port=w.Delta_chi_port, Delta_chi_stbd=w.Delta_chi_stbd)
+    for _ in range(n):
+        tg_traj = [np.stack([x + U * math.cos(c) * t, y + U * math.sin(c) * t, np.full_like(t, c), np.full_like(t, U)],
+                            -1) for x, y, c, U in tg]
+        totals = []
+        for u, c in table:
+            own = ref.los_rollout(state, route, c, m.U_d * u, 0.0, m.lookahead, m.R_a, m.T_chi, m.T_U, s.dt, n)
+            hazard = rs.sbmpc_cost(own, tg_traj, t, component="joint", aggregation="max", **kw) if len(tg) else 0.0
+            gamma = rs.gamma_smooth(u, c, lst[0], lst[1], **gw)
+            totals.append(hazard + gamma + w.k_ntp * (n - oracle_n_tp(own[:, :2], polys, s.r_dom)))
+        k = int(np.argmin(totals))
+        u, c = table[k]
+        controls.append((u, c))
+        lst = np.array([u, c])
+        psi.append(psi[-1])        # replaced below by the exact rollout of the applied offsets
+        tg = np.array([[x + U * math.cos(cc) * s.dt, y + U * math.sin(cc) * s.dt, cc, U] for x, y, cc, U in tg])
+        seq = np.asarray(controls)
+        full = ref.los_rollout(state0, route, seq[:, 1], m.U_d * seq[:, 0], 0.0, m.lookahead, m.R_a, m.T_chi,
+                               m.T_U, s.dt, len(seq))
+        state = full[-1]
+        psi[-1] = state
+    return np.asarray(psi), np.asarray(controls)
+
+
+ROUTE = np.array([[0.0, 0.0], [120.0, 0.0]])
+STATE0 = np.array([0.0, 0.0, 0.0, 1.0])
+HEAD_ON = np.array([[30.0, 0.5, math.pi, 0.8]])
+
+
+@pytest.mark.parametrize("case", ["head_on", "land", "crossing_and_land"])
+def test_scan_equals_float64_loop_oracle(case):
+    polys, targets = [], HEAD_ON
+    if case in ("land", "crossing_and_land"):
+        polys = [np.array([[10.0, -4.0], [10.0, 3.0], [16.0, 3.0], [16.0, -4.0]])]
+    if case == "land":
+        targets = np.zeros((0, 4))
+    if case == "crossing_and_land":
+        targets = np.array([[25.0, -20.0, math.pi / 2, 1.0], [40.0, 1.0, math.pi, 0.5]])
+    w = SmoothWeights()
+    got = init_stage(STATE0, ROUTE, targets, np.array([1.0, 0.0]), chart_of(polys), w, MODEL, SETTINGS)
+    want_psi, want_u = oracle_init_stage(STATE0, ROUTE, targets, [1.0, 0.0], polys, w, SETTINGS, MODEL)
+    np.testing.assert_allclose(np.asarray(got.controls), want_u, atol=1e-12)
+    np.testing.assert_allclose(np.asarray(got.psi), want_psi, atol=1e-9)
+    if case != "head_on":                                             # the applied path itself stays off land
+        land = shapely.Polygon(polys[0])
+        assert min(land.distance(shapely.Point(p)) for p in np.asarray(got.psi)[:, :2]) > 0.0
+
+
+def test_psi_is_the_rollout_of_its_offsets_and_turns_starboard_head_on():
+    route = np.array([[0.0, 0.0], [40.0, 0.0], [40.0, 60.0]])       # two segments: the segment is carried
+    s = SmoothSettings(T_init=12.0, T_mpc=4.0, dt=1.0, n_y=51)
+    got = init_stage(STATE0, route, HEAD_ON, np.array([1.0, 0.0]), chart_of([]), settings=s)
+    states = rollout_controls(jnp.asarray(STATE0), route_path(jnp.asarray(route)), got.controls, MODEL, s.dt)
+    np.testing.assert_allclose(np.asarray(states), np.asarray(got.psi), atol=1e-12)
+    assert float(got.controls[0, 1]) > 0.0                           # starboard in a head-on
+
+
+def test_weights_do_not_recompile_and_bad_settings_are_refused():
+    chart = chart_of([])
+    before = _init_stage_jit._cache_size()
+    for kappa in (5.0, 20.0):
+        init_stage(STATE0, ROUTE, HEAD_ON, np.array([1.0, 0.0]), chart, SmoothWeights(kappa=kappa), MODEL, SETTINGS)
+    assert _init_stage_jit._cache_size() - before <= 1
+    for bad, match in ((dict(T_init=4.0, T_mpc=4.0), "T_init must be > T_mpc"),
+                       (dict(T_init=7.5), "multiple of dt"), (dict(dt=0.0), "dt must be"),
+                       (dict(terminal="hard"), "terminal"), (dict(n_y=1), "n_y"), (dict(r_dom=-1.0), "r_dom")):
+        with pytest.raises(ValueError, match=match):
+            SmoothSettings(**{**dict(T_init=8.0, T_mpc=4.0, dt=1.0), **bad})
+    with pytest.raises(ValueError, match="route"):
+        init_stage(STATE0, ROUTE[:1], HEAD_ON, np.array([1.0, 0.0]), chart, settings=SETTINGS)
+    with pytest.raises(ValueError, match="targets"):
+        init_stage(STATE0, ROUTE, HEAD_ON[0], np.array([1.0, 0.0]), chart, settings=SETTINGS)
