@@ -11,6 +11,7 @@ See the README for the parameter table and ``docs/algorithm.md`` for the exact c
 """
 
 from .behaviours import enumerate_behaviours, enumerate_behaviours_deg, paper_behaviours
+from .cache import enable_compilation_cache
 from .costs.base import cost_term
 from .evaluate import DEFAULT_TERMS, Evaluation, evaluate
 from .objective import objective
@@ -21,11 +22,16 @@ from .situation import Obstacle, OwnShip, Situation
 from .sharding import solve_sharded
 from .solve import Plan, PlannerState, solve
 
-__version__ = "0.1.0"
+from importlib.metadata import PackageNotFoundError as _NoMetadata, version as _dist_version
+
+try:    # the installed distribution's version (pyproject.toml)
+    __version__ = _dist_version("psbmpc-jax")
+except _NoMetadata:  # pragma: no cover - a source tree that was never installed has no metadata
+    __version__ = "0+unknown"
 
 __all__ = [
     "Planner", "PlannerConfig", "PlannerState", "PlanResult", "Params", "OwnShip", "Obstacle", "Situation",
     "enumerate_behaviours", "enumerate_behaviours_deg", "paper_behaviours", "evaluate", "Evaluation",
     "SolveInputs", "Capacities", "pack", "solve", "Plan", "solve_sharded", "objective", "cost_term",
-    "DEFAULT_TERMS", "__version__",
+    "DEFAULT_TERMS", "enable_compilation_cache", "__version__",
 ]

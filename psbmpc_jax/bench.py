@@ -250,9 +250,12 @@ def make_points(swept: str, values, fixed: dict, sweep_name: str) -> list[Point]
 
 
 def parse_values(text: str, swept: str) -> list:
-    items = [s.strip() for s in text.split(",") if s.strip()]
-    if not items:
+    items = [s.strip() for s in text.split(",")]
+    if not text.strip() or all(not s for s in items):
         raise ValueError(f"--values must be a comma-separated list of numbers, got {text!r}")
+    if any(not s for s in items):
+        raise ValueError(f"--values: empty item in {text!r} (two commas in a row, or a leading or trailing "
+                         f"comma); give e.g. --values 1,3,5")
     out = []
     for s in items:
         try:
@@ -312,8 +315,8 @@ def add_bench_arguments(p: argparse.ArgumentParser) -> None:
                    help="JAX platforms to run on (default all: CPU and the GPU if present)")
     p.add_argument("--multi-device", action="store_true",
                    help="also run on all devices of a platform with evaluate_sharded when it has several")
-    p.add_argument("--out", help="JSON Lines file to append to (default "
-                   "benchmarks/results/bench_<host>_<timestamp>.jsonl)")
+    p.add_argument("--out", help="JSON Lines file to append to (default: bench_<host>_<timestamp>.jsonl in the "
+                   "current folder)")
     p.add_argument("--seed", type=int, default=0, help="PRNG seed of the mc/ce sample table")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
 
@@ -380,9 +383,9 @@ def select_devices(which: str) -> dict:
 
 
 def default_out() -> str:
+    """``bench_<host>_<UTC timestamp>.jsonl`` in the current folder (the default of ``--out``)."""
     stamp = dt.datetime.now(dt.timezone.utc).strftime("%Y%m%dT%H%M%SZ")
-    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    return os.path.join(root, "benchmarks", "results", f"bench_{_platform.node() or 'host'}_{stamp}.jsonl")
+    return os.path.join(os.getcwd(), f"bench_{_platform.node() or 'host'}_{stamp}.jsonl")
 
 
 # -------------------------------------------------------------------------------------------- running

@@ -1,51 +1,107 @@
-"""``psbmpc-jax`` command line.
-
-``psbmpc-jax`` (or ``psbmpc-jax example``) solves the built-in paper-scale situation — 1014 control
-behaviours, 2 obstacles x 5 prediction scenarios, T = 150 s, dt = 0.5 s — and prints the chosen maneuver,
-the cost breakdown of the best behaviours and the solve time (compile time and steady state separately).
-"""
+"""The psbmpc-jax command line: example, run, bench and report (help texts are plain text, no markup)."""
 
 from __future__ import annotations
 
 import argparse
-import pathlib
+import difflib
 import os
+import pathlib
 import statistics
 import sys
+import tempfile
 import time
 
-from .argtypes import nonneg_int, odd_int, positive_int
+from .argtypes import nonneg_int, odd_int, positive_int, runs_int, seed_int
+from .cache import enable_compilation_cache
+
+DESCRIPTION = """\
+PSB-MPC ship collision avoidance in JAX.
+
+  psbmpc-jax example  solve the built-in paper-scale head-on situation once (1014 control
+                      behaviours, 2 obstacles x 5 prediction scenarios, T = 150 s, dt = 0.5 s):
+                      the chosen maneuver, the best behaviours' costs and the solve time
+  psbmpc-jax run      closed-loop Monte Carlo simulation of scenario files, metrics and figures
+  psbmpc-jax bench    runtime benchmark sweeps (JSON Lines records)
+  psbmpc-jax report   Markdown report with figures from benchmark records
+
+Without a subcommand psbmpc-jax runs example, and example's options may follow directly
+(psbmpc-jax --n-m 1 is psbmpc-jax example --n-m 1). psbmpc-jax SUBCOMMAND --help lists the
+options of each subcommand.
+"""
 
 
-def enable_compilation_cache() -> None:
-    """Persistent XLA compilation cache (saves the 2-5 s compile on later runs)."""
-    import jax
-
-    path = os.environ.get("PSBMPC_JAX_CACHE", os.path.join(os.path.expanduser("~"), ".cache", "psbmpc_jax"))
+# ------------------------------------------------------------------------------------------ output checks
+def _probe_dir(folder: pathlib.Path) -> str | None:
+    """None if a file can be created in ``folder``, else why not."""
     try:
-        os.makedirs(path, exist_ok=True)
-        jax.config.update("jax_compilation_cache_dir", path)
-        jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
-    except OSError:  # read-only home: run without the cache
-        pass
+        with tempfile.TemporaryFile(dir=folder):
+            pass
+    except OSError as exc:
+        return exc.strerror or str(exc)
+    return None
 
 
+def _nearest_existing(p: pathlib.Path) -> pathlib.Path:
+    p = p.absolute()
+    while not p.exists() and p != p.parent:
+        p = p.parent
+    return p
+
+
+def _dir_problem(p: pathlib.Path) -> str | None:
+    if p.exists() and not p.is_dir():
+        return f"{p} exists and is not a folder"
+    base = _nearest_existing(p)
+    if not base.is_dir():
+        return f"cannot create the folder, {base} is a file"
+    why = _probe_dir(base)
+    return f"cannot write in {base} ({why})" if why else None
+
+
+def output_dir_problem(path, option: str) -> str | None:
+    """Why the folder ``path`` (created if missing) cannot be written, as a message naming ``option``; None
+    if it can.  Nothing is created."""
+    why = _dir_problem(pathlib.Path(path).expanduser())
+    return f"{option} {path}: {why}" if why else None
+
+
+def output_file_problem(path, option: str) -> str | None:
+    """Why the file ``path`` cannot be appended to (its folder created if missing); None if it can."""
+    p = pathlib.Path(path).expanduser()
+    if p.is_dir():
+        return f"{option} {path}: is a folder; give a file name"
+    if p.exists():
+        try:
+            with open(p, "a", encoding="utf-8"):
+                pass
+        except OSError as exc:
+            return f"{option} {path}: cannot append to it ({exc.strerror or exc})"
+        return None
+    why = _dir_problem(p.parent)
+    return f"{option} {path}: {why}" if why else None
+
+
+# ------------------------------------------------------------------------------------------------ parser
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="psbmpc-jax", description=__doc__,
+    from . import __version__
+
+    parser = argparse.ArgumentParser(prog="psbmpc-jax", description=DESCRIPTION,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    sub = parser.add_subparsers(dest="command")
-    ex = sub.add_parser("example", help="solve the built-in paper-scale head-on situation (default)")
-    for p in (parser, ex):
-        p.add_argument("--estimator", choices=("quadrature", "mc", "ce"), default="quadrature",
-                       help="collision-probability estimator (default: quadrature)")
-        p.add_argument("--dtype", choices=("float32", "float64"), default="float32")
-        p.add_argument("--n-m", type=int, choices=(1, 2), default=2,
-                       help="maneuvers per behaviour with the paper sets: 2 -> 1014 behaviours, 1 -> 39")
-        p.add_argument("--n-ps", type=odd_int, default=5, help="prediction scenarios per obstacle (odd)")
-        p.add_argument("--obstacles", type=int, default=2, help="number of head-on obstacles (>= 0)")
-        p.add_argument("--repeats", type=positive_int, default=20, help="steady-state solves to time")
-        p.add_argument("--top", type=positive_int, default=5, help="best behaviours to print")
-        p.add_argument("--seed", type=int, default=0, help="PRNG seed for the mc/ce sample table")
+    parser.add_argument("--version", action="version", version=f"psbmpc-jax {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="SUBCOMMAND")
+    ex = sub.add_parser("example", help="solve the built-in paper-scale head-on situation (the default)",
+                        description="Solve the built-in paper-scale head-on situation and print the chosen "
+                                    "maneuver, the best behaviours' costs and the solve time (compile time and "
+                                    "steady state separately).")
+    add_example_arguments(ex)
+    parser._example_parser = ex
+    run = sub.add_parser("run", help="closed-loop Monte Carlo simulation of scenario files, with metrics and plots",
+                         description="Simulate scenarios (built-in names, glob patterns over them such as "
+                                     "'imazu_*', or paths to YAML files; see docs/scenarios.md) and write "
+                                     "metrics.json, summary.md and figures per scenario, and an index.md over "
+                                     "all of them. Exit status 1 when any run had a collision or grounding.")
+    add_run_arguments(run)
+    parser._run_parser = run
     from .bench import add_bench_arguments
 
     bench = sub.add_parser("bench", help="runtime benchmark sweeps (paper Figs. 5-10), JSON Lines records",
@@ -58,21 +114,60 @@ def build_parser() -> argparse.ArgumentParser:
                             description="Merge psbmpc-bench/1 result files (from any machines) into report.md "
                                         "and PNG box plots.")
     add_report_arguments(report)
-    run = sub.add_parser("run", help="closed-loop Monte Carlo simulation of scenario files, with metrics and plots",
-                         description="Simulate scenarios (built-in names, glob patterns over them such as "
-                                     "'imazu_*', or paths to YAML files; see docs/scenarios.md) and write "
-                                     "metrics.json, summary.md and figures per scenario.")
-    add_run_arguments(run)
-    parser._run_parser = run
+    parser._report_parser = report
     return parser
 
 
+def add_example_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--estimator", choices=("quadrature", "mc", "ce"), default="quadrature",
+                   help="collision-probability estimator (default: quadrature)")
+    p.add_argument("--dtype", choices=("float32", "float64"), default="float32")
+    p.add_argument("--n-m", type=int, choices=(1, 2), default=2,
+                   help="maneuvers per behaviour with the paper sets: 2 -> 1014 behaviours, 1 -> 39")
+    p.add_argument("--n-ps", type=odd_int, default=5, help="prediction scenarios per obstacle (odd)")
+    p.add_argument("--obstacles", type=nonneg_int, default=2, help="number of head-on obstacles (>= 0)")
+    p.add_argument("--repeats", type=positive_int, default=20, help="steady-state solves to time")
+    p.add_argument("--top", type=positive_int, default=5, help="best behaviours to print")
+    p.add_argument("--seed", type=seed_int, default=0, help="PRNG seed for the mc/ce sample table")
+
+
+def _plot_runs(text: str):
+    from .sim.plots import parse_runs
+
+    try:
+        return parse_runs(text)      # None = all (resolved once the number of runs is known)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def add_run_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("scenarios", nargs="*", help="built-in scenario names or patterns (see --list), or YAML paths")
+    p.add_argument("--list", action="store_true",
+                   help="list the built-in scenarios (name, description, file) and exit")
+    p.add_argument("--runs", type=runs_int, default=None, help="Monte Carlo runs (default: the file's)")
+    p.add_argument("--seed", type=seed_int, default=None,
+                   help="base seed >= 0 (default: the file's); also seeds the mc/ce sample table")
+    p.add_argument("--out", default="results", help="output folder; one sub-folder per scenario (default: results)")
+    p.add_argument("--batch", choices=("auto", "vmap", "loop"), default="auto",
+                   help="device calls per MPC update: one vmapped call for all runs and ships, or one per solve "
+                        "(auto: vmap on an accelerator, loop on the CPU)")
+    p.add_argument("--plot-runs", type=_plot_runs, default=False, metavar="RUNS",
+                   help="runs to draw map, distance and course/speed figures of: 'all' or indices such as 0,3,5 "
+                        "(files named map_run3.png, ...); default: run 0 (map.png, ...)")
+    p.add_argument("--animate", action="store_true",
+                   help="also write an animation of each drawn run (GIF; MP4 too when ffmpeg is installed)")
+    p.add_argument("--save-trajectories", action="store_true",
+                   help="write every run's trajectories, chosen offsets and cost terms to trajectories.csv and "
+                        "trajectories.npz (read them with psbmpc_jax.sim.load_trajectories)")
+    p.add_argument("--no-figures", action="store_true", help="no PNG figures (metrics, and what is asked for)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+# ------------------------------------------------------------------------------------------------ example
 def run_example(args) -> int:
     import jax
     import numpy as np
 
-    if args.obstacles < 0:
-        raise SystemExit(f"psbmpc-jax: --obstacles must be >= 0, got {args.obstacles}")
     if args.dtype == "float64":
         jax.config.update("jax_enable_x64", True)
     enable_compilation_cache()
@@ -93,9 +188,10 @@ def run_example(args) -> int:
 
     n_b = len(planner.behaviours)
     n_ps_total = sum(ob.n_ps for ob in situation.obstacles)
+    seed = f" (seed {args.seed})" if args.estimator != "quadrature" else ""
     print(f"psbmpc-jax example: n_cbs={n_b}, obstacles={len(situation.obstacles)} x n_ps={args.n_ps} "
           f"(n_ct={n_b * n_ps_total}), T={planner.config.T:g} s, dt={planner.config.dt:g} s, "
-          f"estimator={args.estimator}, dtype={args.dtype}, device={jax.devices()[0].device_kind}")
+          f"estimator={args.estimator}{seed}, dtype={args.dtype}, device={jax.devices()[0].device_kind}")
     print(f"chosen behaviour #{result.best_index}: " + ", ".join(
         f"M{m + 1}: u={u:g}, chi={np.rad2deg(c):+g} deg" for m, (u, c) in enumerate(result.offsets)))
     print(f"apply now: U_c = {result.u_opt:g} * U_d, chi_c = chi_d {np.rad2deg(result.chi_opt):+g} deg")
@@ -112,91 +208,214 @@ def run_example(args) -> int:
     return 0
 
 
-def add_run_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("scenarios", nargs="*", help="built-in scenario names or patterns (see --list), or YAML paths")
-    p.add_argument("--list", action="store_true", help="list the built-in scenarios and exit")
-    p.add_argument("--runs", type=positive_int, default=None, help="Monte Carlo runs (default: the file's)")
-    p.add_argument("--seed", type=nonneg_int, default=None, help="base seed >= 0 (default: the file's)")
-    p.add_argument("--out", default="results", help="output folder; one sub-folder per scenario (default: results)")
-    p.add_argument("--batch", choices=("auto", "vmap", "loop"), default="auto",
-                   help="device calls per MPC update: one vmapped call for all runs and ships, or one per solve "
-                        "(auto: vmap on an accelerator, loop on the CPU)")
-    p.add_argument("--no-figures", action="store_true", help="write metrics only")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+# ---------------------------------------------------------------------------------------------------- run
+def scenario_listing() -> list[tuple[str, str, str]]:
+    """(name, one-line description, file path) of every built-in scenario."""
+    import yaml
+
+    from .scenario import SCENARIO_DIR, builtin_scenarios
+
+    rows = []
+    for name in builtin_scenarios():
+        path = next((SCENARIO_DIR / f"{name}{ext}" for ext in (".yaml", ".yml")
+                     if (SCENARIO_DIR / f"{name}{ext}").is_file()), SCENARIO_DIR / f"{name}.yaml")
+        try:
+            desc = (yaml.safe_load(path.read_text(encoding="utf-8")) or {}).get("description", "")
+        except (OSError, yaml.YAMLError, AttributeError):
+            desc = ""
+        rows.append((name, _one_line(str(desc or "")), str(path)))
+    return rows
+
+
+def _one_line(desc: str, width: int = 72) -> str:
+    """The lead-in of a description (up to the first ':', ';' or '. ' outside parentheses), at most ``width``
+    characters."""
+    desc = " ".join(desc.split())
+    depth = 0
+    for i, ch in enumerate(desc):
+        depth += (ch == "(") - (ch == ")")
+        if depth == 0 and i >= 10 and ch in ":;." and (i + 1 == len(desc) or desc[i + 1] == " "):
+            desc = desc[:i]
+            break
+    if len(desc) > width:
+        desc = desc[: width - 3].rsplit(" ", 1)[0].rstrip(",;:") + "..."
+    return desc
+
+
+def _did_you_mean(word: str, candidates) -> str:
+    close = difflib.get_close_matches(word, list(candidates), n=3, cutoff=0.6)
+    return f"; did you mean {' or '.join(repr(c) for c in close)}?" if close else ""
+
+
+def _missing_file_hint(item: str, names) -> str:
+    """A suggestion for a scenario path that does not exist: a built-in of that name, or a similar file."""
+    p = pathlib.Path(item).expanduser()
+    if p.stem in names:
+        return f"; the built-in scenario {p.stem!r} is given by its name alone: psbmpc-jax run {p.stem}"
+    if p.parent.is_dir():
+        files = [f.name for f in p.parent.iterdir() if f.suffix in (".yaml", ".yml")]
+        close = difflib.get_close_matches(p.name, files, n=3, cutoff=0.6)
+        if close:
+            return f"; did you mean {' or '.join(repr(str(p.parent / c)) for c in close)}?"
+    return _did_you_mean(p.stem, names)
+
+
+def _verdict(s: dict) -> str:
+    bad = [(s["collisions"], "own-ship collision"), (s["groundings"], "own-ship grounding"),
+           (s["pair_collision_runs"], "collision between other ships"),
+           (s["any_ship_groundings"], "grounding of any ship")]
+    failed = [f"{n} run{'s' if n != 1 else ''} with {what}" for n, what in bad if n]
+    return "FAILED: " + ", ".join(failed) if failed else "no collisions or groundings"
 
 
 def run_scenarios(args, parser) -> int:
     import fnmatch
-    import json
 
     from .scenario import builtin_scenarios, load_scenario
 
     names = builtin_scenarios()
     if args.list:
-        for n in names:
-            print(n)
+        rows = scenario_listing()
+        width = max((len(n) for n, _, _ in rows), default=4)
+        dwidth = max((len(d) for _, d, _ in rows), default=0)
+        for n, d, path in rows:
+            print(f"{n:<{width}}  {d:<{dwidth}}  {path}")
         return 0
     if not args.scenarios:
         parser.error("give at least one scenario (built-in name, pattern or YAML path); --list shows the names")
     selected = []
     for item in args.scenarios:
-        if item.endswith((".yaml", ".yml")) or "/" in item:
+        if item.endswith((".yaml", ".yml")) or "/" in item or os.sep in item:
             selected.append(item)
             continue
         hits = fnmatch.filter(names, item)
         if not hits:
-            parser.error(f"no built-in scenario matches {item!r}; built-in: {', '.join(names)}")
+            parser.error(f"no built-in scenario matches {item!r}{_did_you_mean(item, names)} "
+                         f"(psbmpc-jax run --list shows them with their descriptions)")
         selected += hits
-    enable_compilation_cache()
-    from .sim import simulate
-    from .sim.output import write_index, write_outputs
-
     scenarios = []
     for item in selected:   # every file is checked before the first simulation starts
         try:
             scenarios.append(load_scenario(item))
+        except FileNotFoundError as exc:
+            parser.error(f"{exc}{_missing_file_hint(item, names)}")
         except (ValueError, OSError) as exc:
             parser.error(str(exc))
-    failures = 0
+    plot_runs = {}
+    for sc in scenarios:   # --plot-runs against each scenario's number of runs
+        n_runs = args.runs or sc.runs
+        if args.plot_runs is False:
+            plot_runs[sc.name] = None
+        elif args.plot_runs is None:
+            plot_runs[sc.name] = list(range(n_runs))
+        else:
+            too_big = [r for r in args.plot_runs if r >= n_runs]
+            if too_big:
+                parser.error(f"argument --plot-runs: run {too_big[0]} does not exist: scenario {sc.name!r} has "
+                             f"{n_runs} run{'s' if n_runs != 1 else ''} (0..{n_runs - 1})")
+            plot_runs[sc.name] = list(args.plot_runs)
+    problem = output_dir_problem(args.out, "--out")
+    if problem:
+        parser.error(problem)
+
+    import jax
+
+    enable_compilation_cache()
+    from .sim import simulate
+    from .sim.output import write_index, write_outputs
+
+    failures, total_runs, t_all = [], 0, time.perf_counter()
     for scenario in scenarios:
         t0 = time.perf_counter()
-        result = simulate(scenario, runs=args.runs, seed=args.seed, batch=args.batch, progress=not args.quiet)
+        seed = scenario.seed if args.seed is None else args.seed
+        # mc / ce draw their sample table from a key: seeded like the measurement noise
+        key = jax.random.key(seed) if scenario.mpc.config.estimator != "quadrature" else None
+        result = simulate(scenario, runs=args.runs, seed=args.seed, batch=args.batch, progress=not args.quiet,
+                          key=key)
         out = pathlib.Path(args.out) / scenario.name
-        write_outputs(result, out, figures=not args.no_figures)
+        write_outputs(result, out, figures=not args.no_figures, plot_runs=plot_runs[scenario.name],
+                      animate=args.animate, trajectories=args.save_trajectories)
         s = result.summary
-        bad = s["collisions"] + s["groundings"] + s["pair_collision_runs"] + s["any_ship_groundings"]
-        failures += bool(bad)
-        print(f"{scenario.name}: {s['runs']} runs in {time.perf_counter() - t0:.0f} s -- own-ship collisions "
-              f"{s['collisions']}, groundings {s['groundings']}, any-pair collisions {s['pair_collision_runs']}, "
-              f"any-ship groundings {s['any_ship_groundings']}; closest approach "
-              + json.dumps({tg["name"]: tg["min_distance_m"]["min"] for tg in s["targets"]})
-              + f"; results in {out}/")
+        total_runs += s["runs"]
+        verdict = _verdict(s)
+        if verdict.startswith("FAILED"):
+            failures.append(f"{scenario.name} ({verdict[len('FAILED: '):]})")
+        closest = ", ".join(f"{tg['name']} {tg['min_distance_m']['min']:.1f} m" for tg in s["targets"]
+                            if tg["min_distance_m"]["min"] is not None)
+        land = s["min_distance_land_m"]["min"]
+        print(f"{scenario.name}: {s['runs']} runs in {time.perf_counter() - t0:.0f} s: {verdict}; "
+              f"closest approach {closest or 'n/a'}" + (f", to land {land:.1f} m" if land is not None else "")
+              + f"; {s['mpc_solves_total']} MPC solves; results in {out}{os.sep}")
     index = write_index(args.out)
-    print(f"index of every scenario under {args.out}: {index}")
+    n_sc = len(scenarios)
+    head = (f"psbmpc-jax run: {n_sc} scenario{'s' if n_sc != 1 else ''}, {total_runs} run"
+            f"{'s' if total_runs != 1 else ''} in {time.perf_counter() - t_all:.0f} s")
+    if failures:
+        print(f"{head}: {len(failures)} with failures: {'; '.join(failures)}. Index: {index}")
+    else:
+        print(f"{head}: all passed (no collisions or groundings). Index: {index}")
     return 1 if failures else 0
 
 
-def main(argv=None) -> int:
+# ---------------------------------------------------------------------------------------------------- main
+def _with_default_subcommand(argv: list[str]) -> list[str]:
+    """``psbmpc-jax`` and ``psbmpc-jax --n-m 1`` are ``psbmpc-jax example ...``."""
+    if not argv:
+        return ["example"]
+    if argv[0].startswith("-") and argv[0] not in ("-h", "--help", "--version"):
+        return ["example", *argv]
+    return argv
+
+
+def _main(argv) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
-    if args.command in (None, "example"):
+    args = parser.parse_args(_with_default_subcommand(list(sys.argv[1:] if argv is None else argv)))
+    if args.command == "example":
         return run_example(args)
     if args.command == "bench":
-        from .bench import build_plan, run_bench, select_devices
+        from .bench import build_plan, default_out, run_bench, select_devices
 
         try:   # flag combinations argparse cannot check: a usage error naming the flag
             build_plan(args)
             select_devices(args.devices)
         except ValueError as exc:
             parser._bench_parser.error(str(exc))
+        args.out = args.out or default_out()
+        problem = output_file_problem(args.out, "--out")
+        if problem:
+            parser._bench_parser.error(problem)
         return run_bench(args)
     if args.command == "run":
         return run_scenarios(args, parser._run_parser)
     if args.command == "report":
         from .report import run_report
 
+        if args.results:
+            problem = output_dir_problem(args.out, "--out")
+            if problem:
+                parser._report_parser.error(problem)
         return run_report(args)
     raise SystemExit(f"psbmpc-jax: unknown command {args.command!r}")  # argparse already guards this
+
+
+def main(argv=None) -> int:
+    """Entry point of the ``psbmpc-jax`` console script; returns the exit status."""
+    try:
+        rc = _main(argv)
+        sys.stdout.flush()
+        return rc
+    except BrokenPipeError:
+        # stdout went to a command that stopped reading (psbmpc-jax run --list | head -1): no traceback, and
+        # no second error when Python flushes stdout at exit
+        try:
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+        except (OSError, ValueError):
+            pass
+        return 1
+    except KeyboardInterrupt:
+        print("psbmpc-jax: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

@@ -10,7 +10,7 @@ import pathlib
 
 import numpy as np
 
-__all__ = ["land_patch", "plot_chart", "write_rdp_figure"]
+__all__ = ["land_patch", "plot_chart", "plot_candidates", "plot_plan", "write_rdp_figure"]
 
 
 def _rings(poly):
@@ -31,6 +31,95 @@ def land_patch(rings, *, facecolor="#d9c9a3", edgecolor="#6b5a3a", lw: float = 0
         verts.append(xy)
         codes += [Path.MOVETO] + [Path.LINETO] * (len(xy) - 2) + [Path.CLOSEPOLY]
     return PathPatch(Path(np.vstack(verts), codes), facecolor=facecolor, edgecolor=edgecolor, lw=lw, zorder=zorder)
+
+
+def plot_candidates(ax, trajectories, costs, best_index: int, *, label: str | None = None, lw: float = 0.5,
+                    alpha: float = 0.5, colorbar: bool = True, colorbar_label: str = "candidate cost H"):
+    """Draw own-ship candidate trajectories ``[B, N+1, >=2]`` (north, east, ...) north up, coloured by their
+    total cost ``[B]`` (log scale, cheapest drawn on top; behaviours with a non-finite cost are left out) and
+    the chosen one (``best_index``) in magenta.  Returns the LineCollection (None if no cost is finite)."""
+    import matplotlib.pyplot as plt
+    from matplotlib.collections import LineCollection
+    from matplotlib.colors import LogNorm
+
+    traj = np.asarray(trajectories, dtype=float)
+    cost = np.asarray(costs, dtype=float)
+    finite = np.isfinite(cost)
+    lc = None
+    if finite.any():
+        lo = max(float(np.min(cost[finite])), 1e-3)
+        hi = max(float(np.max(cost[finite])), lo * 10)
+        segs = [np.stack([tr[:, 1], tr[:, 0]], axis=1) for tr in traj[finite]]
+        order = np.argsort(-cost[finite])                  # cheapest drawn last (on top)
+        lc = LineCollection([segs[i] for i in order], cmap="viridis_r", norm=LogNorm(vmin=lo, vmax=hi), lw=lw,
+                            alpha=alpha, zorder=2)
+        lc.set_array(np.maximum(cost[finite][order], lo))
+        ax.add_collection(lc)
+        if colorbar:
+            plt.colorbar(lc, ax=ax, shrink=0.7, label=colorbar_label)
+    best = traj[int(best_index)]
+    ax.plot(best[:, 1], best[:, 0], "-", color="magenta", lw=1.6, zorder=4, label=label or "chosen")
+    return lc
+
+
+def plot_plan(result, situation=None, ax=None, *, scenarios: bool = True, title: str | None = None):
+    """Draw one solve (a :class:`~psbmpc_jax.PlanResult` from :meth:`~psbmpc_jax.Planner.plan`), north up:
+    the own-ship's candidate trajectories coloured by their total cost (log scale), the chosen one in
+    magenta, each obstacle's prediction scenarios (dashed, one colour per obstacle), the land polygons and
+    the own-ship's route.
+
+    Args:
+        result: the PlanResult.
+        situation: the :class:`~psbmpc_jax.Situation` that was solved, for the polygons and the route
+            (default: the one the result was computed from).
+        ax: matplotlib axes (default: a new figure).
+        scenarios: draw the obstacles' prediction scenarios.
+        title: axes title (default: the chosen behaviour and its first maneuver).
+    Returns the axes.
+
+    Example::
+
+        result, state = planner.plan(situation)
+        ax = plot_plan(result)
+        ax.figure.savefig("plan.png")
+    """
+    import matplotlib.pyplot as plt
+
+    if situation is None:   # the situation the result was unpacked with (PlanResult keeps it)
+        situation = getattr(result, "situation", None) or getattr(result, "_situation", None)
+    if ax is None:
+        _, ax = plt.subplots(figsize=(8, 7))
+    if situation is not None:
+        from .situation import polygon_rings
+
+        for poly in situation.polygons:
+            rings = [np.vstack([r, r[:1]]) for r in map(np.asarray, polygon_rings(poly))]
+            ax.add_patch(land_patch(rings))
+        wp = np.asarray(situation.own_ship.waypoints, dtype=float)
+        ax.plot(wp[:, 1], wp[:, 0], ":", color="gray", lw=1.0, zorder=2, label="own-ship route")
+    traj = result.own_trajectories
+    plot_candidates(ax, traj, result.costs["total"], result.best_index,
+                    label=f"chosen: behaviour {result.best_index}")
+    ax.plot([traj[0, 0, 1]], [traj[0, 0, 0]], "o", color="magenta", ms=5, zorder=5)
+    colours = ("tab:red", "tab:green", "tab:blue", "tab:purple", "tab:orange", "tab:brown", "tab:cyan")
+    if scenarios:
+        for i, obs in enumerate(result.obstacle_trajectories):
+            col = colours[i % len(colours)]
+            for s_idx, tr in enumerate(np.asarray(obs)):
+                ax.plot(tr[:, 1], tr[:, 0], "--", color=col, lw=0.9, alpha=0.8, zorder=3,
+                        label=f"obstacle {i} ({len(obs)} scenarios)" if s_idx == 0 else None)
+            ax.plot([obs[0, 0, 1]], [obs[0, 0, 0]], "s", color=col, ms=5, zorder=5)
+    ax.set_aspect("equal")
+    ax.autoscale_view()
+    ax.set_xlabel("east [m]")
+    ax.set_ylabel("north [m]")
+    if title is None:
+        u, chi = result.offsets[0]
+        title = (f"behaviour {result.best_index}: first maneuver u = {u:g}, chi offset = {np.degrees(chi):+.0f} deg, "
+                 f"total cost {result.costs['total'][result.best_index]:.3g}")
+    ax.set_title(title, fontsize=9)
+    ax.legend(fontsize=7, loc="best")
+    return ax
 
 
 def plot_chart(chart, ax=None, simplified=None, *, own_ship=None, d_so=None, land_color="#d9c9a3",

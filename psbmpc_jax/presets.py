@@ -8,6 +8,7 @@ field; :func:`build_mpc` applies the overrides and validates them.
 from __future__ import annotations
 
 import dataclasses
+import difflib
 from dataclasses import dataclass
 
 import numpy as np
@@ -70,9 +71,18 @@ _CONFIG_FIELDS = tuple(f.name for f in dataclasses.fields(PlannerConfig))
 _PARAM_FIELDS = tuple(f.name for f in dataclasses.fields(Params))
 
 
+def _did_you_mean(bad, allowed) -> str:
+    """`` (did you mean 'K_coll'?)`` for the first unknown name with a close match, else ``""``."""
+    for name in bad:
+        close = difflib.get_close_matches(str(name), allowed, n=1, cutoff=0.6)
+        if close:
+            return f" (did you mean {close[0]!r} for {name!r}?)"
+    return ""
+
+
 def get_preset(name: str) -> MPCPreset:
     if name not in PRESETS:
-        raise ValueError(f"unknown MPC preset {name!r}; allowed: {sorted(PRESETS)}")
+        raise ValueError(f"unknown MPC preset {name!r}{_did_you_mean([name], sorted(PRESETS))}; allowed: {sorted(PRESETS)}")
     return PRESETS[name]
 
 
@@ -88,10 +98,12 @@ def build_mpc(preset: str, config_overrides: dict | None = None, param_overrides
     param_overrides = dict(param_overrides or {})
     bad = sorted(set(config_overrides) - set(_CONFIG_FIELDS))
     if bad:
-        raise ValueError(f"unknown PlannerConfig field(s) {bad}; allowed: {list(_CONFIG_FIELDS)}")
+        raise ValueError(f"unknown PlannerConfig field(s) {bad}{_did_you_mean(bad, _CONFIG_FIELDS)}; "
+                         f"allowed: {list(_CONFIG_FIELDS)}")
     bad = sorted(set(param_overrides) - set(_PARAM_FIELDS))
     if bad:
-        raise ValueError(f"unknown Params field(s) {bad}; allowed: {list(_PARAM_FIELDS)}")
+        raise ValueError(f"unknown Params field(s) {bad}{_did_you_mean(bad, _PARAM_FIELDS)}; "
+                         f"allowed: {list(_PARAM_FIELDS)}")
     config = p.config.replace(**config_overrides)
     params = p.params.replace(**{k: float(v) for k, v in param_overrides.items()})
     validate_params(params)

@@ -72,11 +72,31 @@ def _expand(paths) -> list[pathlib.Path]:
     return out
 
 
+#: What the report reads, for error messages about files that are something else.
+EXPECTED = (f"psbmpc-jax report reads the JSON Lines files written by psbmpc-jax bench: one {SCHEMA} record "
+            f"per line, each with \"schema\": \"{SCHEMA}\" (see docs/bench_schema.md)")
+
+
+def _not_bench_file(path, lineno: int, error: str) -> ValueError:
+    """The error for a file that is not benchmark results: what it seems to be, and what is expected."""
+    kind = ""
+    try:   # a whole JSON document (e.g. metrics.json of psbmpc-jax run) rather than JSON Lines?
+        doc = json.loads(pathlib.Path(path).read_text(encoding="utf-8"))
+    except (ValueError, OSError):
+        doc = None
+    if isinstance(doc, dict) and isinstance(doc.get("schema"), str):
+        what = " (metrics.json of psbmpc-jax run)" if doc["schema"].startswith("psbmpc-sim/") else ""
+        kind = f"; this file is one {doc['schema']!r} JSON document{what}, not benchmark results"
+    return ValueError(f"{path}:{lineno}: {error}{kind}. {EXPECTED}")
+
+
 def _validate(rec, where: str) -> None:
     if not isinstance(rec, dict):
-        raise ValueError(f"{where}: expected a JSON object, got {type(rec).__name__}")
+        raise ValueError(f"{where}: expected a JSON object, got {type(rec).__name__}. {EXPECTED}")
+    if "schema" not in rec:
+        raise ValueError(f"{where}: no 'schema' field, so not a {SCHEMA} record. {EXPECTED}")
     if rec.get("schema") != SCHEMA:
-        raise ValueError(f"{where}: wrong schema {rec.get('schema')!r} (expected {SCHEMA!r})")
+        raise ValueError(f"{where}: wrong schema {rec.get('schema')!r} (expected {SCHEMA!r}). {EXPECTED}")
     missing = [f for f in REQUIRED_FIELDS if f not in rec]
     if missing:
         raise ValueError(f"{where}: missing field(s) {', '.join(missing)}")
@@ -120,20 +140,28 @@ def load_results(paths) -> list[dict]:
         raise ValueError("no benchmark results files given")
     records = []
     for path in _expand(paths):
-        with open(path, encoding="utf-8") as fh:
-            for lineno, line in enumerate(fh, 1):
-                if not line.strip():
-                    continue
-                where = f"{path}:{lineno}"
-                try:
-                    rec = json.loads(line)
-                except json.JSONDecodeError as e:
-                    raise ValueError(f"{where}: malformed JSON ({e.msg} at column {e.colno})") from None
-                _validate(rec, where)
-                rec = dict(rec)
-                rec.setdefault("schedule", "sequential")   # files written before the field: always sequential
-                rec["_source"] = where
-                records.append(rec)
+        records_in_file = 0
+        try:
+            text = pathlib.Path(path).read_text(encoding="utf-8")
+        except UnicodeDecodeError:
+            raise ValueError(f"{path}: not a text file. {EXPECTED}") from None
+        for lineno, line in enumerate(text.split("\n"), 1):
+            if not line.strip():
+                continue
+            where = f"{path}:{lineno}"
+            try:
+                rec = json.loads(line)
+            except json.JSONDecodeError as e:
+                if not records_in_file:   # nothing valid yet: probably not a results file at all
+                    raise _not_bench_file(path, lineno, f"malformed JSON ({e.msg} at column {e.colno})") \
+                        from None
+                raise ValueError(f"{where}: malformed JSON ({e.msg} at column {e.colno})") from None
+            _validate(rec, where)
+            records_in_file += 1
+            rec = dict(rec)
+            rec.setdefault("schedule", "sequential")   # files written before the field: always sequential
+            rec["_source"] = where
+            records.append(rec)
     if not records:
         raise ValueError(f"no benchmark records in {', '.join(str(p) for p in paths)} (empty input)")
     return records

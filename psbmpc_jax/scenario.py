@@ -12,6 +12,7 @@ problem in a file raises ``ValueError`` naming the key and what is allowed; noth
 from __future__ import annotations
 
 import copy
+import difflib
 import math
 import numbers
 import os
@@ -203,7 +204,9 @@ def _mapping(value, where: str) -> dict:
 def _check_keys(d: dict, allowed, where: str, required=()) -> None:
     for k in d:
         if k not in allowed:
-            raise ValueError(f"unknown key {k!r} in {where}; allowed keys: {', '.join(allowed)}")
+            close = difflib.get_close_matches(str(k), [str(a) for a in allowed], n=1, cutoff=0.6)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            raise ValueError(f"unknown key {k!r} in {where}{hint}; allowed keys: {', '.join(allowed)}")
     for k in required:
         if k not in d:
             raise ValueError(f"{where}: missing required key {k!r}")

@@ -202,3 +202,13 @@ def test_argtypes_limits():
                             (argtypes.seed_int, "-1", ">= 0")]:
         with pytest.raises(argparse.ArgumentTypeError, match=match):
             fn(text)
+
+
+def test_unknown_keys_suggest_the_close_name():
+    from psbmpc_jax import presets
+    from psbmpc_jax.scenario import scenario_from_dict
+
+    with pytest.raises(ValueError, match=r"unknown key 'nam' .*did you mean 'name'"):
+        scenario_from_dict({"nam": "x"})
+    with pytest.raises(ValueError, match=r"did you mean 'K_coll' for 'K_col'"):
+        presets.build_mpc("nidelva", param_overrides={"K_col": 1.0})

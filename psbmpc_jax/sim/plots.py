@@ -5,12 +5,16 @@ North-east maps are drawn north up: east on the horizontal axis, north on the ve
 
 from __future__ import annotations
 
+import contextlib
 import pathlib
 
 import numpy as np
 
-from ..plots import land_patch
+from ..plots import land_patch, plot_candidates
 from ..situation import polygon_rings
+
+__all__ = ["SHIP_COLORS", "plot_map", "plot_distances", "plot_course_speed", "plot_monte_carlo", "write_figures",
+           "animate_run", "parse_runs"]
 
 SHIP_COLORS = ("tab:red", "tab:green", "tab:blue", "tab:purple", "black", "tab:orange", "tab:brown", "tab:cyan")
 
@@ -35,10 +39,9 @@ def plot_map(result, run: int = 0, ax=None, n_instants: int = 5, ship_scale: flo
     ``n_instants`` instants (numbered t1, t2, ...), the own-ship's route, and -- when the run is the
     snapshot run -- the candidate trajectories of that solve coloured by their cost."""
     import matplotlib.pyplot as plt
-    from matplotlib.collections import LineCollection
-    from matplotlib.colors import LogNorm
 
     sc = result.scenario
+    _check_run(result, run)
     if ax is None:
         _, ax = plt.subplots(figsize=(8, 7))
     states = result.states[run]
@@ -48,21 +51,9 @@ def plot_map(result, run: int = 0, ax=None, n_instants: int = 5, ship_scale: flo
     _draw_land(ax, sc.polygons)
     snap = result.snapshot
     if snap is not None and snap["run"] == run:
-        traj = snap["own_trajectories"]                             # [B, N+1, 4]
-        cost = np.asarray(snap["total_cost"], float)
-        finite = np.isfinite(cost)
-        lo = max(np.min(cost[finite]), 1e-3)
-        segs = [np.stack([tr[:, 1], tr[:, 0]], axis=1) for tr in traj[finite]]
-        order = np.argsort(-cost[finite])                            # cheapest drawn last (on top)
-        lc = LineCollection([segs[i] for i in order], cmap="viridis_r",
-                            norm=LogNorm(vmin=lo, vmax=max(np.max(cost[finite]), lo * 10)), lw=0.5, alpha=0.5,
-                            zorder=2)
-        lc.set_array(cost[finite][order])
-        ax.add_collection(lc)
-        best = traj[snap["best_index"]]
-        ax.plot(best[:, 1], best[:, 0], "-", color="magenta", lw=1.6, zorder=4,
-                label=f"chosen at t = {snap['t_s']:.0f} s")
-        plt.colorbar(lc, ax=ax, shrink=0.7, label=f"candidate cost H (solve at t = {snap['t_s']:.0f} s)")
+        plot_candidates(ax, snap["own_trajectories"], snap["total_cost"], snap["best_index"],
+                        label=f"chosen at t = {snap['t_s']:.0f} s",
+                        colorbar_label=f"candidate cost H (solve at t = {snap['t_s']:.0f} s)")
     route = sc.own_ship.waypoints
     ax.plot(route[:, 1], route[:, 0], ":", color="gray", lw=1.0, zorder=2, label="own-ship route")
     idx = np.linspace(0, len(result.t) - 1, n_instants).round().astype(int)
@@ -98,6 +89,7 @@ def plot_distances(result, run: int = 0, ax=None):
     from .metrics import distance_to_land
 
     sc = result.scenario
+    _check_run(result, run)
     if ax is None:
         _, ax = plt.subplots(figsize=(8, 4))
     own = result.states[run, 0, :, :2]
@@ -141,23 +133,208 @@ def plot_monte_carlo(result, ax=None):
     return ax
 
 
-def write_figures(result, out_dir, run: int = 0, dpi: int = 120) -> list[pathlib.Path]:
-    """Write ``map.png``, ``distances.png`` and ``monte_carlo.png`` to ``out_dir``; returns the paths."""
+def plot_course_speed(result, run: int = 0, axes=None):
+    """Course and speed of every ship over time, and the offsets the PSB-MPC ships applied (course offset
+    and speed factor of the chosen behaviour, held from one MPC update to the next).
+
+    Args:
+        axes: three matplotlib axes (course, speed, offsets), default a new figure.
+    Returns the three axes."""
+    import matplotlib.pyplot as plt
+
+    sc = result.scenario
+    _check_run(result, run)
+    if axes is None:
+        _, axes = plt.subplots(3, 1, figsize=(8, 7), sharex=True)
+    ax_c, ax_u, ax_o = axes
+    states = result.states[run]
+    ax_o2 = None   # twin axis of the speed factors, made with the first PSB-MPC ship
+    for i, ship in enumerate(sc.ships):
+        col = SHIP_COLORS[i % len(SHIP_COLORS)]
+        label = f"{ship.name}{' (own-ship)' if i == 0 else ''}"
+        ax_c.plot(result.t, np.degrees(np.unwrap(states[i, :, 2])), color=col, lw=1.1, label=label)
+        ax_u.plot(result.t, states[i, :, 3], color=col, lw=1.1, label=label)
+        off = result.offsets[run, i]
+        if np.isfinite(off[:, 0]).any():
+            t_step = np.append(result.solve_t, result.t[-1])
+            ax_o.step(t_step, np.degrees(np.append(off[:, 1], off[-1, 1])), where="post", color=col, lw=1.1,
+                      label=f"{ship.name}: course offset")
+            if ax_o2 is None:
+                ax_o2 = ax_o.twinx()
+                ax_o2.set_ylabel("speed factor u (dotted)")
+                ax_o2.set_ylim(-0.05, 1.05)
+            ax_o2.step(t_step, np.append(off[:, 0], off[-1, 0]), where="post", color=col, lw=0.9, ls=":",
+                       label=f"{ship.name}: speed factor")
+    ax_c.set_ylabel("course [deg]")
+    ax_u.set_ylabel("speed [m/s]")
+    ax_o.set_ylabel("course offset [deg]")
+    ax_o.set_xlabel("t [s]")
+    ax_c.set_title(f"{sc.name}, run {run}: course, speed and applied MPC offsets", fontsize=9)
+    ax_c.legend(fontsize=7, loc="best")
+    if ax_o.lines:
+        ax_o.legend(fontsize=7, loc="upper left")
+    else:
+        ax_o.text(0.5, 0.5, "no ship runs PSB-MPC", transform=ax_o.transAxes, ha="center", va="center")
+    for ax in axes:
+        ax.grid(True, alpha=0.3)
+    return axes
+
+
+def _check_run(result, run: int) -> None:
+    n = result.states.shape[0]
+    if isinstance(run, bool) or not isinstance(run, (int, np.integer)) or not 0 <= run < n:
+        raise ValueError(f"run must be an integer in [0, {n}) (the simulation has {n} runs), got {run!r}")
+
+
+def parse_runs(text: str, n_runs: int | None = None) -> list[int] | None:
+    """Runs to draw from text: ``"all"`` (None: every run, resolved by :func:`write_figures`) or a
+    comma-separated list of run indices such as ``"0,3,5"``.  With ``n_runs`` the indices are checked and
+    ``"all"`` becomes ``range(n_runs)``.  Raises ValueError saying what is allowed."""
+    text = str(text).strip()
+    if text.lower() == "all":
+        return None if n_runs is None else list(range(n_runs))
+    items = [s.strip() for s in text.split(",")]
+    if not text or any(s == "" for s in items):
+        raise ValueError(f"expected 'all' or comma-separated run indices such as 0,3,5 (no empty items), "
+                         f"got {text!r}")
+    runs = []
+    for s in items:
+        try:
+            v = int(s)
+        except ValueError:
+            raise ValueError(f"expected 'all' or run indices (integers >= 0) such as 0,3,5, got {s!r}") from None
+        if v < 0:
+            raise ValueError(f"run indices must be >= 0, got {v}")
+        if n_runs is not None and v >= n_runs:
+            raise ValueError(f"run {v} does not exist: the simulation has {n_runs} run{'s' if n_runs != 1 else ''} "
+                             f"(0..{n_runs - 1})")
+        if v not in runs:
+            runs.append(v)
+    return runs
+
+
+def write_figures(result, out_dir, run: int = 0, dpi: int = 120, *, runs=None) -> list[pathlib.Path]:
+    """Write the figures to ``out_dir``; returns the paths.
+
+    Per drawn run: ``map.png`` (:func:`plot_map`), ``distances.png`` (:func:`plot_distances`) and
+    ``course_speed.png`` (:func:`plot_course_speed`); once: ``monte_carlo.png`` (:func:`plot_monte_carlo`).
+
+    Args:
+        run: the run drawn when ``runs`` is None (file names without a run suffix).
+        runs: run indices, or ``"all"`` / a text such as ``"0,3,5"`` (:func:`parse_runs`): each drawn run's
+            figures get the suffix ``_run<r>`` (``map_run3.png``, ...).
+    """
     import matplotlib
 
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
 
+    n_runs = result.states.shape[0]
+    if isinstance(runs, str):
+        runs = parse_runs(runs, n_runs)
+    if runs is None:
+        chosen, suffix = [run], lambda r: ""
+    else:
+        chosen, suffix = list(runs), lambda r: f"_run{r}"
+    for r in chosen:
+        _check_run(result, r)
     out = pathlib.Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     paths = []
-    for name, fn in (("map.png", lambda ax: plot_map(result, run, ax)),
-                     ("distances.png", lambda ax: plot_distances(result, run, ax)),
-                     ("monte_carlo.png", lambda ax: plot_monte_carlo(result, ax))):
-        fig, ax = plt.subplots(figsize=(8, 7) if name == "map.png" else (8, 4))
-        fn(ax)
+
+    def save(fig, name):
         fig.tight_layout()
         fig.savefig(out / name, dpi=dpi)
         plt.close(fig)
         paths.append(out / name)
+
+    for r in chosen:
+        fig, ax = plt.subplots(figsize=(8, 7))
+        plot_map(result, r, ax)
+        save(fig, f"map{suffix(r)}.png")
+        fig, ax = plt.subplots(figsize=(8, 4))
+        plot_distances(result, r, ax)
+        save(fig, f"distances{suffix(r)}.png")
+        fig, axes = plt.subplots(3, 1, figsize=(8, 7), sharex=True)
+        plot_course_speed(result, r, axes)
+        save(fig, f"course_speed{suffix(r)}.png")
+    fig, ax = plt.subplots(figsize=(8, 4))
+    plot_monte_carlo(result, ax)
+    save(fig, "monte_carlo.png")
     return paths
+
+
+def animate_run(result, run: int = 0, path="animation.gif", *, fps: int = 10, max_frames: int = 120,
+                dpi: int = 80, mp4: bool | None = None) -> list[pathlib.Path]:
+    """Animate one run north up: land, routes, every ship's track so far and its hull (scaled up for
+    visibility), the time in the title.  Writes ``path`` as a GIF (matplotlib's PillowWriter) and, when
+    ffmpeg is installed (``mp4=None``) or ``mp4=True``, the same animation as MP4 next to it.
+
+    Args:
+        fps: frames per second of the files.
+        max_frames: at most this many frames, evenly spaced over the run (the last step always included).
+    Returns the written paths."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+    from matplotlib import animation
+
+    _check_run(result, run)
+    if max_frames < 2:
+        raise ValueError(f"max_frames must be >= 2, got {max_frames}")
+    sc = result.scenario
+    path = pathlib.Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    states = result.states[run]
+    xy = states[..., :2]
+    K1 = states.shape[1]
+    frames = np.unique(np.linspace(0, K1 - 1, min(max_frames, K1)).round().astype(int))
+    span = float(np.max(np.ptp(xy.reshape(-1, 2), axis=0))) or 1.0
+    scale = max(1.0, 0.025 * span / max(s.length for s in sc.ships))
+
+    fig, ax = plt.subplots(figsize=(6.4, 5.6))
+    _draw_land(ax, sc.polygons)
+    tracks, hulls = [], []
+    for i, ship in enumerate(sc.ships):
+        col = SHIP_COLORS[i % len(SHIP_COLORS)]
+        route = ship.waypoints
+        ax.plot(route[:, 1], route[:, 0], ":", color=col, lw=0.8, alpha=0.6, zorder=2)
+        (line,) = ax.plot([], [], "-", color=col, lw=1.2, zorder=3, label=ship.name + (" (own-ship)" if i == 0 else ""))
+        tracks.append(line)
+        hull = plt.Polygon(np.zeros((5, 2)), closed=True, color=col, alpha=0.9, zorder=5)
+        ax.add_patch(hull)
+        hulls.append(hull)
+    pad = 0.08 * span
+    lo, hi = xy.reshape(-1, 2).min(axis=0) - pad, xy.reshape(-1, 2).max(axis=0) + pad
+    widen = np.maximum(0.0, 0.6 * np.max(hi - lo) - (hi - lo)) / 2
+    lo, hi = lo - widen, hi + widen
+    ax.set_xlim(lo[1], hi[1])
+    ax.set_ylim(lo[0], hi[0])
+    ax.set_aspect("equal")
+    ax.set_xlabel("east [m]")
+    ax.set_ylabel("north [m]")
+    ax.legend(fontsize=7, loc="upper right")
+    title = ax.set_title("", fontsize=9)
+
+    def draw(k):
+        for i, ship in enumerate(sc.ships):
+            tracks[i].set_data(xy[i, : k + 1, 1], xy[i, : k + 1, 0])
+            hulls[i].set_xy(_ship_outline(*states[i, k, :3], ship.length, ship.width, scale))
+        title.set_text(f"{sc.name}, run {run}: t = {result.t[k]:.0f} s (ships drawn x{scale:.0f})")
+        return tracks + hulls + [title]
+
+    writers = [(path, animation.PillowWriter(fps=fps))]
+    if (animation.writers.is_available("ffmpeg") if mp4 is None else mp4):
+        writers.append((path.with_suffix(".mp4"), animation.FFMpegWriter(fps=fps)))
+    try:
+        with contextlib.ExitStack() as stack:   # one pass over the frames feeds every writer
+            for target, writer in writers:
+                stack.enter_context(writer.saving(fig, str(target), dpi))
+            for k in frames:
+                draw(int(k))
+                for _, writer in writers:
+                    writer.grab_frame()
+    finally:
+        plt.close(fig)
+    return [target for target, _ in writers]

@@ -18,6 +18,7 @@ replays identically whatever the number of runs simulated with it.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import sys
 import time
@@ -34,7 +35,9 @@ from ..distance_grid import build_distance_grid
 from ..evaluate import DEFAULT_TERMS
 from ..packing import SHARED_AXES, pack, stack, unpack
 from ..params import params_as_arrays
+from .. import checks
 from ..planner import check_dtype
+from ..scenario_checks import check_run_size
 from ..situation import Obstacle, OwnShip, Situation
 from ..solve import Plan, PlannerState, solve, solve_arrays
 from ..scenario import Scenario, route_geometry
@@ -64,6 +67,9 @@ class SimulationResult:
             the terms: do, colregs, so, path).
         calls: one dict per MPC update: time, number of solves, number of device calls (1 with vmap, one per
             solve in the loop), wall time of all of them [s].
+        solve_wall: wall time of each solve ``[R, n_ships, M]`` [s] (nan for ships without PSB-MPC): measured
+            per solve in the loop (dispatch to the chosen behaviour on the host), the update's call time divided
+            by its number of solves under vmap; the first update includes compiling the solver.
         snapshot: one solve of run ``snapshot_run``'s own-ship kept in full (all candidate trajectories and
             their costs) for the paper-Fig.-1-style plot: the first solve that chose to manoeuvre.
         metrics: per-run metrics (:func:`psbmpc_jax.sim.metrics.run_metrics` plus per-ship land distances
@@ -83,6 +89,12 @@ class SimulationResult:
     snapshot: dict | None
     metrics: list
     summary: dict = field(default_factory=dict)
+    solve_wall: np.ndarray | None = None
+
+    @property
+    def ship_names(self) -> list[str]:
+        """Ship names in the order of the ship axis (own-ship first)."""
+        return [s.name for s in self.scenario.ships]
 
 
 # ------------------------------------------------------------------------------------------- device calls
@@ -123,26 +135,97 @@ def grid_region(scenario: Scenario, routes) -> tuple:
 
 
 class _Progress:
-    def __init__(self, total: int, label: str, enabled: bool):
-        self.total, self.label, self.enabled = total, label, enabled
-        self.t0 = time.perf_counter()
-        self.last = -1
+    """Progress of one simulation on stderr: one tick per MPC update (per simulation step when no ship runs
+    PSB-MPC), with an ETA taken from the ticks after the first -- the first update compiles the solver, so its
+    time says nothing about the rest.  Uses ``tqdm`` when it is installed, else a plain bar: a live line on a
+    terminal, four lines (25 %, 50 %, ...) in a log file."""
 
-    def update(self, k: int) -> None:
-        if not self.enabled:
+    def __init__(self, total: int, label: str, enabled: bool, *, unit: str = "MPC updates",
+                 first_compiles: bool = True):
+        self.total, self.label, self.enabled, self.unit = max(int(total), 1), label, enabled, unit
+        self.first_compiles = first_compiles
+        self.t0 = time.perf_counter()
+        self.t_first = None            # when the first tick came (the rate is measured from there)
+        self.done, self.last_pct, self.last_draw = 0, -1, 0.0
+        self.tty = sys.stderr.isatty()
+        self.bar = None
+        if not enabled:
             return
-        step = 2 if sys.stderr.isatty() else 25       # a log file gets four lines, a terminal a live bar
-        pct = int(100 * k / max(self.total, 1)) // step * step
-        if pct == self.last:
+        try:
+            from tqdm import tqdm
+        except ImportError:
+            tqdm = None
+        if tqdm is not None:
+            self.bar = tqdm(total=self.total, desc=label, unit=unit.split()[-1].rstrip("s") or "it",
+                            file=sys.stderr, dynamic_ncols=True, leave=True, smoothing=0.1)
+            if first_compiles:
+                self.bar.set_postfix_str("first update compiles the solver")
+        else:
+            self._draw(force=True)
+
+    def eta(self) -> float | None:
+        """Seconds left, from the mean time per tick after the first (None before two ticks)."""
+        if self.done >= self.total:
+            return 0.0
+        start = 1 if self.first_compiles else 0
+        if self.t_first is None or self.done <= start:
+            return None
+        since = time.perf_counter() - (self.t_first if self.first_compiles else self.t0)
+        return since / (self.done - start) * (self.total - self.done)
+
+    def update(self, done: int) -> None:
+        """``done`` ticks of ``total`` finished."""
+        if not self.enabled or done <= self.done:
             return
-        self.last = pct
+        if self.t_first is None:
+            self.t_first = time.perf_counter()
+        prev, self.done = self.done, min(int(done), self.total)
+        if self.bar is not None:
+            if self.first_compiles and prev == 0:
+                # restart tqdm's clock after the compiling update: its rate and ETA cover the later updates
+                self.bar.reset(total=self.total)
+                self.bar.initial = self.bar.n = self.bar.last_print_n = self.done
+                self.bar.set_postfix_str(f"first update {self.t_first - self.t0:.1f} s (compile)", refresh=False)
+                self.bar.refresh()
+            else:
+                self.bar.update(self.done - self.bar.n)
+            return
+        self._draw()
+
+    def _draw(self, force: bool = False) -> None:
+        pct = int(100 * self.done / self.total)
+        now = time.perf_counter()
+        final = self.done >= self.total
+        if self.tty:
+            if not (force or final or now - self.last_draw >= 0.1):
+                return
+        else:
+            step = pct // 25 * 25
+            if not (force or final) and (step == self.last_pct or step == 0):
+                return
+            pct = step if not final else 100
+        self.last_pct, self.last_draw = (pct // 25 * 25 if not self.tty else pct), now
         bar = "#" * (pct // 4) + "." * (25 - pct // 4)
-        el = time.perf_counter() - self.t0
-        eta = el / max(k, 1) * (self.total - k)
-        sys.stderr.write(("\r" if sys.stderr.isatty() else "") + f"{self.label} [{bar}] {pct:3d}%  {el:6.1f} s elapsed, ~{eta:5.0f} s left")
-        if k >= self.total or not sys.stderr.isatty():
+        el = now - self.t0
+        eta = self.eta()
+        if self.done == 0 and self.first_compiles:
+            tail = "first update compiles the solver"
+        elif eta is None:
+            tail = "ETA after the next update"
+        else:
+            tail = f"~{eta:.0f} s left"
+        line = f"{self.label} [{bar}] {self.done}/{self.total} {self.unit}  {el:.1f} s elapsed, {tail}"
+        sys.stderr.write(("\r" + line + "\x1b[K") if self.tty else line + "\n")
+        if self.tty and final:
             sys.stderr.write("\n")
         sys.stderr.flush()
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+        elif self.enabled and self.tty and self.done < self.total:
+            sys.stderr.write("\n")
+            sys.stderr.flush()
 
 
 # ------------------------------------------------------------------------------------------- simulation
@@ -154,20 +237,24 @@ class _Solver:
         self.mode, self.config, self.params, self.samples = mode, config, params, samples
 
     def __call__(self, packed: list, states: list, keep: int | None):
+        """Returns the chosen indices ``[n]``, their cost rows ``[n, C]``, the kept evaluation (or None) and the
+        wall time of each solve ``[n]`` [s] (None under vmap, where only the call as a whole is timed)."""
         if self.mode == "vmap":
             batch_state = jax.tree.map(lambda *a: jnp.stack([jnp.asarray(x) for x in a]), *states)
             plan, _, ev = _batched_solve(self.config)(stack(packed), batch_state, self.params, self.samples)
             best, costs = jax.device_get((plan.best, _costs_row(plan)))
             kept = jax.tree.map(lambda a: a[keep], ev) if keep is not None else None
-            return np.asarray(best), np.asarray(costs), kept
-        outs, kept = [], None
+            return np.asarray(best), np.asarray(costs), kept, None
+        outs, kept, walls = [], None, []
         for n, (inputs, state) in enumerate(zip(packed, states)):
+            t0 = time.perf_counter()   # each solve timed up to its decision on the host
             plan, _, ev = solve(inputs, state, self.params, self.samples, config=self.config)
-            outs.append((plan.best, _costs_row(plan)))
+            outs.append(jax.device_get((plan.best, _costs_row(plan))))
+            walls.append(time.perf_counter() - t0)
             if n == keep:
                 kept = ev
-        host = jax.device_get(outs)
-        return np.array([b for b, _ in host]), np.stack([c for _, c in host]), kept
+        return (np.array([b for b, _ in outs]), np.stack([c for _, c in outs]), kept,
+                np.asarray(walls, dtype=float))
 
     def device_calls(self, n_solves: int) -> int:
         return 1 if self.mode == "vmap" else n_solves
@@ -218,6 +305,7 @@ class _ClosedLoop:
         M = len(self.solve_steps)
         self.offsets = np.full((R, n, M, 2), np.nan)
         self.best_costs = np.full((R, n, M, len(COST_NAMES)), np.nan)
+        self.solve_wall = np.full((R, n, M), np.nan)
         self.calls, self.snapshot, self.snap_pending = [], None, bool(self.colav[0])
         pos_var, vel_var = sensor.colav_target_cov
         self.true_cov = np.diag([pos_var, pos_var, vel_var, vel_var])
@@ -260,8 +348,10 @@ class _ClosedLoop:
         states = [PlannerState((self.u_c[r, i], self.chi_off[r, i])) for r, i in jobs]
         keep = jobs.index((self.snapshot_run, 0)) if self.snap_pending else None
         t0 = time.perf_counter()
-        best, costs, kept = self.solver(packed, states, keep)
+        best, costs, kept, walls = self.solver(packed, states, keep)
         wall = time.perf_counter() - t0
+        if walls is None:      # vmap: one call for every solve, amortised
+            walls = np.full(len(jobs), wall / len(jobs))
         self.calls.append({"t_s": float(self.t[k]), "solves": len(jobs),
                            "device_calls": self.solver.device_calls(len(jobs)), "wall_s": wall})
         for n, (r, i) in enumerate(jobs):
@@ -269,6 +359,7 @@ class _ClosedLoop:
             self.u_c[r, i], self.chi_off[r, i] = u, c
             self.offsets[r, i, m] = (u, c)
             self.best_costs[r, i, m] = costs[n]
+            self.solve_wall[r, i, m] = walls[n]
         if kept is not None:
             self._keep_snapshot(kept, k, wall)
 
@@ -295,19 +386,27 @@ class _ClosedLoop:
             self.tracker.step(self.sc.dt)
 
     def run(self, progress: bool) -> SimulationResult:
-        bar = _Progress(self.K, f"{self.sc.name} ({self.R} runs)", progress)
-        for k in range(self.K + 1):
-            bar.update(k)
-            self.measure(k)
-            if k == self.K:
-                break
-            if k % self.mpc_every == 0 and self.colav.any():
-                self.plan(k)
-            self.move(k)
+        label = f"{self.sc.name} ({self.R} run{'s' if self.R != 1 else ''})"
+        planning = bool(self.colav.any())
+        bar = (_Progress(len(self.solve_steps), label, progress) if planning
+               else _Progress(self.K, label, progress, unit="steps", first_compiles=False))
+        try:
+            for k in range(self.K + 1):
+                self.measure(k)
+                if k == self.K:
+                    break
+                if k % self.mpc_every == 0 and planning:
+                    self.plan(k)
+                    bar.update(len(self.calls))
+                self.move(k)
+                if not planning:
+                    bar.update(k + 1)
+        finally:
+            bar.close()
         return SimulationResult(
             scenario=self.sc, t=self.t, states=self.states, track_x=self.track_x, track_P=self.track_P,
             solve_t=self.t[self.solve_steps], offsets=self.offsets, best_costs=self.best_costs, calls=self.calls,
-            snapshot=self.snapshot, metrics=[])
+            snapshot=self.snapshot, metrics=[], solve_wall=self.solve_wall)
 
     def clip_exceeded(self) -> bool | None:
         """Whether a prediction can have reached beyond the land kept by ``chart.clip_m``: true when a ship came
@@ -338,7 +437,7 @@ def simulate(scenario: Scenario, *, runs: int | None = None, seed: int | None = 
         runs, seed: override the scenario's Monte Carlo settings.
         batch: ``"vmap"`` (all solves of one MPC update in one device call), ``"loop"`` (one call per solve)
             or ``"auto"``.
-        progress: draw a progress bar on stderr.
+        progress: draw a progress bar on stderr, one tick per MPC update (``tqdm`` if installed).
         snapshot_run: the run whose first manoeuvring own-ship solve is kept in full for plotting.
         key: PRNG key for the ``mc``/``ce`` estimators' samples (required for those; unused by ``quadrature``).
     """
@@ -346,12 +445,18 @@ def simulate(scenario: Scenario, *, runs: int | None = None, seed: int | None = 
         raise ValueError(f"scenario must be a psbmpc_jax.scenario.Scenario, got {type(scenario).__name__}")
     runs = integer(scenario.runs if runs is None else runs, "runs", ge=1)
     seed = integer(scenario.seed if seed is None else seed, "seed", ge=0)
+    check_run_size(scenario, runs)                 # a --runs override is held to the memory limit too
     if not 0 <= snapshot_run < runs:
         raise ValueError(f"snapshot_run must be in [0, {runs}), got {snapshot_run}")
     mode = resolve_batch_mode(batch)
     check_dtype(scenario.mpc.config)
+    if (runs, seed) != (scenario.runs, scenario.seed):   # the result records the settings as used
+        scenario = dataclasses.replace(scenario, runs=runs, seed=seed)
     if scenario.mpc.config.estimator != "quadrature" and key is None:
-        raise ValueError(f"estimator {scenario.mpc.config.estimator!r} draws samples: pass key=jax.random.key(...)")
+        raise ValueError(f"estimator {scenario.mpc.config.estimator!r} draws samples: pass key=jax.random.key(...) "
+                         "(psbmpc_jax.scenario.estimator_key(scenario) gives the scenario seed's key)")
+    if key is not None:
+        checks.prng_key(key, "key")
     loop = _ClosedLoop(scenario, runs, seed, mode, key, snapshot_run)
     result = loop.run(progress)
     result.metrics = [run_metrics(result, r) for r in range(runs)]
@@ -367,12 +472,18 @@ def run_metrics(result: SimulationResult, r: int) -> dict:
     their own PSB-MPC must not collide with each other either)."""
     sc = result.scenario
     states = result.states[r]
-    own_solves = [c["wall_s"] / c["solves"] for c in result.calls] if sc.own_ship.colav == "psbmpc" else []
+    if sc.own_ship.colav != "psbmpc":
+        own_solves = []
+    elif result.solve_wall is not None:      # this run's own-ship solves (measured one by one in the loop)
+        own_solves = [float(w) for w in result.solve_wall[r, 0] if np.isfinite(w)]
+    else:                                    # a result built without per-solve times: amortised call times
+        own_solves = [c["wall_s"] / c["solves"] for c in result.calls]
     out = metrics_mod.run_metrics(
         result.t, states[0], states[1:], sc.own_ship.waypoints, sc.polygons, d_collision=sc.d_collision,
         ground_clearance=0.5 * sc.own_ship.width, solve_times=own_solves or None,
         target_names=[s.name for s in sc.targets], classify_range=None)
     out["run"] = r
+    out["solve_times_s"] = own_solves
     ships = sc.ships
     if sc.polygons:
         # the own-ship's distance is in the metrics already; the targets' are computed here
@@ -399,9 +510,13 @@ def run_metrics(result: SimulationResult, r: int) -> dict:
 
 def summarize(result: SimulationResult, *, mode: str, grid_exceeded: bool | None,
               clip_exceeded: bool | None = None) -> dict:
-    """Aggregate over runs, plus how the simulation ran (batch mode, device calls, timing)."""
+    """Aggregate over runs (:func:`psbmpc_jax.sim.metrics.aggregate`, less its own-ship ``n_solves``), plus how
+    the simulation ran: ``mpc_updates`` (MPC update instants), ``mpc_solves_total`` (solves of every PSB-MPC
+    ship in every run: the one count of solves), ``device_calls``, batch mode, device and timing.  ``solves``
+    repeats ``mpc_solves_total`` under its older name (in memory only; metrics.json has the new name)."""
     sc = result.scenario
     summary = metrics_mod.aggregate(result.metrics)
+    summary.pop("n_solves", None)       # the own-ship's solves only: the per-run n_solves add up to it
     walls = np.array([c["wall_s"] for c in result.calls]) if result.calls else np.zeros(0)
     per_solve = np.array([c["wall_s"] / c["solves"] for c in result.calls]) if result.calls else np.zeros(0)
     summary.update({
@@ -417,10 +532,11 @@ def summarize(result: SimulationResult, *, mode: str, grid_exceeded: bool | None
         "platform": jax.default_backend(),
         "mpc_updates": len(result.calls),
         "device_calls": int(sum(c["device_calls"] for c in result.calls)),
-        "solves": int(sum(c["solves"] for c in result.calls)),
+        "mpc_solves_total": int(sum(c["solves"] for c in result.calls)),
         "call_wall_s_median": float(np.median(walls)) if walls.size else None,
         "solve_wall_s_amortised_median": float(np.median(per_solve)) if per_solve.size else None,
         "grid_region_exceeded": grid_exceeded,
         "chart_clip_exceeded": clip_exceeded,
     })
+    summary["solves"] = summary["mpc_solves_total"]   # older name, kept in memory only (not in metrics.json)
     return summary
