@@ -15,6 +15,14 @@ the real rows):
 
 bundled as :class:`SolveInputs`.  Capacities are an argument (:class:`Capacities`); by default they are
 bucketed so that a stream of situations with slowly varying sizes compiles a handful of times.
+
+**Local origin** (docs/algorithm.md §11).  Device positions are relative to a local origin ``o`` (north, east
+[m], float64 on the host): every position — own-ship state and route, obstacle states and routes, polygon
+vertices, the distance grid's corner — is shifted by ``-o`` in float64 *before* the cast to the device dtype,
+so float32 keeps millimetre resolution whatever the user's frame (UTM northings are ~7e6 m, where float32
+spacing is 0.5 m).  Courses, the wind direction and velocities are unchanged by a translation.
+:class:`PlanResult` shifts its trajectories back: everything it returns is in the user's frame.  The origin
+is a multiple of :data:`ORIGIN_SNAP` (1 km), so it is exact in both dtypes and nearby situations share it.
 """
 
 from __future__ import annotations
@@ -136,6 +144,42 @@ def _capacity(given, needed: int, default: int, what: str) -> int:
     return int(given)
 
 
+# ------------------------------------------------------------------------------------------- local origin
+#: Local origins are multiples of this [m]: exact in float32 and float64, and shared by nearby situations.
+ORIGIN_SNAP = 1000.0
+
+
+def snap_origin(position) -> np.ndarray:
+    """The multiple of :data:`ORIGIN_SNAP` nearest to ``position`` (north, east) [m], float64 ``[2]``."""
+    p = np.asarray(position, dtype=np.float64).reshape(2)
+    if not np.all(np.isfinite(p)):
+        raise ValueError(f"origin position must be two finite numbers (north, east), got {position!r}")
+    return np.round(p / ORIGIN_SNAP) * ORIGIN_SNAP
+
+
+def default_origin(situation: Situation) -> np.ndarray:
+    """The local origin :func:`pack` and :func:`unpack` use when none is given: the centre of the polygons'
+    bounding box when the situation has polygons, else the own-ship position, snapped to :data:`ORIGIN_SNAP`.
+
+    Chart first: every solve over one chart then shares one origin and so one packed world, which
+    :func:`stack` (``vmap`` over solves, the simulator's batch mode) requires; without polygons the packed world
+    holds no positions and per-solve origins are harmless."""
+    if situation.polygons:
+        pts = np.concatenate([ring_vertices(poly)[0] for poly in situation.polygons])
+        return snap_origin(0.5 * (pts.min(axis=0) + pts.max(axis=0)))
+    return snap_origin(situation.own_ship.state[:2])
+
+
+def _origin(origin) -> np.ndarray:
+    """A validated origin: ``None`` -> (0, 0), else two finite numbers as float64 ``[2]``."""
+    if origin is None:
+        return np.zeros(2)
+    o = np.asarray(origin, dtype=np.float64)
+    if o.shape != (2,) or not np.all(np.isfinite(o)):
+        raise ValueError(f"origin must be two finite numbers (north, east) [m], got {origin!r}")
+    return o
+
+
 def _obstacle_route(ob, horizon: float) -> np.ndarray:
     """The route an obstacle is predicted along: its waypoints, or a straight line along its velocity."""
     if ob.waypoints is not None:
@@ -147,12 +191,30 @@ def _obstacle_route(ob, horizon: float) -> np.ndarray:
     return np.stack([p0, p0 + length * np.array([np.cos(course), np.sin(course)])])
 
 
+def shift_polygons(polygons, origin) -> tuple:
+    """``polygons`` (rings or ring tuples) with ``origin`` subtracted from every vertex, in float64."""
+    o = _origin(origin)
+    out = []
+    for poly in polygons:
+        if isinstance(poly, tuple):
+            out.append(tuple(np.asarray(r, dtype=np.float64) - o for r in poly))
+        else:
+            out.append(np.asarray(poly, dtype=np.float64) - o)
+    return tuple(out)
+
+
 def pack_world(polygons, config, capacities: Capacities | None = None,
-               grid: DistanceGrid | None = None) -> WorldArrays:
+               grid: DistanceGrid | None = None, origin=None) -> WorldArrays:
     """The chart part of the inputs: padded polygons and, in grid mode, the distance grid (built here from
-    ``polygons`` unless given)."""
+    ``polygons`` unless given).
+
+    ``polygons`` and ``grid`` are in the user's frame; the packed world is relative to ``origin`` (default
+    (0, 0): no shift), subtracted in float64 before the cast to ``config.dtype``.  A grid built here is built
+    from the shifted polygons (its distances are computed near the origin, at full precision)."""
     caps = capacities or Capacities()
     dtype = np.dtype(config.dtype)
+    o = _origin(origin)
+    polygons = shift_polygons(polygons, o) if np.any(o != 0) else tuple(polygons)
     polys = [ring_vertices(poly) for poly in polygons]
     p_cap = _capacity(caps.polygons, len(polys), bucket(len(polys), 0), "polygons")
     n_v = max([len(v) for v, _ in polys], default=4)
@@ -168,7 +230,10 @@ def pack_world(polygons, config, capacities: Capacities | None = None,
     if config.grounding_mode == "grid" and polys:
         if grid is None:
             grid = build_distance_grid(polygons, config.grid_spacing, config.grid_margin, dtype=dtype)
-        grid_arrays = GridArrays(grid.values, np.asarray(grid.origin, dtype), np.asarray(grid.spacing, dtype),
+            grid_origin = np.asarray(grid.origin, np.float64)            # built in the local frame
+        else:
+            grid_origin = np.asarray(grid.origin, np.float64) - o        # the user's grid: shift its corner
+        grid_arrays = GridArrays(grid.values, np.asarray(grid_origin, dtype), np.asarray(grid.spacing, dtype),
                                  np.asarray(grid.margin, dtype), np.asarray(True))
     else:  # placeholder (exact mode, or no land at all)
         grid_arrays = GridArrays(np.zeros((2, 2), dtype), np.zeros(2, dtype), np.asarray(1.0, dtype),
@@ -188,25 +253,34 @@ def pack_behaviours(behaviours, config, capacities: Capacities | None = None) ->
 
 def pack(situation: Situation, behaviours: np.ndarray, config, *, capacities: Capacities | None = None,
          grid: DistanceGrid | None = None, world: WorldArrays | None = None,
-         behaviour_arrays: BehaviourArrays | None = None) -> SolveInputs:
+         behaviour_arrays: BehaviourArrays | None = None, origin=None) -> SolveInputs:
     """Validated host objects -> padded inputs (NumPy leaves of the dtype of ``config``; the distance grid stays
     on the device), ready for the jitted :func:`~psbmpc_jax.solve.solve`.
 
     In ``grounding_mode="grid"`` the nearest-land distance grid of ``situation.polygons`` is used: pass it as
-    ``grid`` (:class:`~psbmpc_jax.planner.Planner` builds and caches it), otherwise it is built here.
-    ``world`` / ``behaviour_arrays``: already packed chart and table (:func:`pack_world`,
-    :func:`pack_behaviours`) to reuse — the planner caches them, they rarely change between solves."""
+    ``grid`` (in the user's frame; :class:`~psbmpc_jax.planner.Planner` builds and caches it), otherwise it is
+    built here.  ``world`` / ``behaviour_arrays``: already packed chart and table (:func:`pack_world`,
+    :func:`pack_behaviours`) to reuse — the planner caches them, they rarely change between solves.
+
+    ``origin``: the local origin (north, east) [m] of the device frame (module docstring); default
+    :func:`default_origin`.  Pass the same origin to :func:`unpack`.  With ``world`` the origin that world was
+    packed with is required."""
     if not isinstance(situation, Situation):
         raise ValueError(f"situation must be a psbmpc_jax.Situation, got {type(situation).__name__}")
     caps = capacities or Capacities()
     if not isinstance(caps, Capacities):
         raise ValueError(f"capacities must be a psbmpc_jax.Capacities, got {type(caps).__name__}")
+    if world is not None and origin is None:
+        raise ValueError("pack(world=...) needs the origin that world was packed with (origin=...)")
+    o = default_origin(situation) if origin is None else _origin(origin)
     dtype = np.dtype(config.dtype)
     own = situation.own_ship
+    own_state = np.array(own.state, dtype=np.float64)
+    own_state[:2] -= o
     n_w = len(own.waypoints)
     w_cap = _capacity(caps.waypoints, n_w, bucket(n_w, 2), "waypoints")
     own_w = np.zeros((1, w_cap, 2))
-    own_w[0, :n_w] = own.waypoints
+    own_w[0, :n_w] = own.waypoints - o
 
     obstacles = situation.obstacles
     o_cap = max(_capacity(caps.obstacles, len(obstacles), bucket(len(obstacles), 1), "obstacles"), 1)
@@ -227,7 +301,8 @@ def pack(situation: Situation, behaviours: np.ndarray, config, *, capacities: Ca
     obs_mask = np.zeros(o_cap, dtype=bool)
     for i, (ob, route) in enumerate(zip(obstacles, routes)):
         obs_state[i], obs_cov[i], obs_length[i] = ob.state, ob.cov, ob.length
-        obs_w[i, : len(route)], obs_n[i] = route, len(route)
+        obs_state[i, :2] -= o
+        obs_w[i, : len(route)], obs_n[i] = route - o, len(route)
         obs_n_ps[i] = ob.n_ps
         obs_probs[i, : ob.n_ps] = ob.probs
         obs_weight[i], obs_zeta[i], obs_mask[i] = ob.weight, ob.zeta, True
@@ -237,11 +312,11 @@ def pack(situation: Situation, behaviours: np.ndarray, config, *, capacities: Ca
     # host (NumPy) leaves: the jitted solve transfers them in its C++ dispatch path, much cheaper per array
     # than a Python-side jax.device_put (measured in benchmarks/bench_solve.py)
     return SolveInputs(
-        own=OwnShipArrays(f(own.state), f(own_w[..., 0]), f(own_w[..., 1]), i32([n_w]), f(own.U_d),
+        own=OwnShipArrays(f(own_state), f(own_w[..., 0]), f(own_w[..., 1]), i32([n_w]), f(own.U_d),
                           f(own.length)),
         obstacles=ObstacleArrays(f(obs_state), f(obs_cov), f(obs_length), f(obs_w[..., 0]), f(obs_w[..., 1]),
                                  i32(obs_n), i32(obs_n_ps), f(obs_probs), f(obs_weight), f(obs_zeta), obs_mask),
-        world=world if world is not None else pack_world(situation.polygons, config, caps, grid),
+        world=world if world is not None else pack_world(situation.polygons, config, caps, grid, origin=o),
         behaviours=(behaviour_arrays if behaviour_arrays is not None
                     else pack_behaviours(behaviours, config, caps)),
     )
@@ -308,15 +383,18 @@ class PlanResult:
         collision_cost, colregs_indicator: per obstacle ``[B, n_ps_i]`` arrays (C_s^{l,i}, mu_s^{l,i}).
         grounding_per_polygon: ``[B, n_so]`` (``[B, 0]`` in grid mode, which only knows the nearest land).
         own_trajectories: ``[B, N+1, 4]`` (x, y, chi, U); obstacle_trajectories: per obstacle
-            ``[n_ps_i, N+1, 4]``.
+            ``[n_ps_i, N+1, 4]``; both in the user's frame (the device's local frame shifted back by
+            ``origin``).
+        origin: the local origin (north, east) [m] the solve ran about (module docstring).
         n_pc_blocks: (row, time-block) pairs evaluated by the collision-probability estimator.
         solve_time_s: wall time of the device call (including the transfer of the cost table).
         behaviours: the behaviour table ``[B, n_M, 2]``.
     """
 
     def __init__(self, ev, situation: Situation, behaviours: np.ndarray, solve_time: float, *,
-                 per_polygon: bool = True, status: str = "ok", names=None):
+                 per_polygon: bool = True, status: str = "ok", names=None, origin=None):
         self.best_index = int(ev.best)
+        self.origin = default_origin(situation) if origin is None else _origin(origin)
         self.offsets = np.array(behaviours[self.best_index], dtype=float)   # exact host values
         self._names = names
         self.behaviours = behaviours
@@ -379,8 +457,10 @@ class PlanResult:
         # device trajectories are time-major ([T, B]); results are row-major
         def build():
             own = jax.device_get(self._ev.own)
-            return np.stack([own.x, own.y, own.chi, own.U], axis=-1).swapaxes(0, 1)[: len(self.behaviours)] \
+            out = np.stack([own.x, own.y, own.chi, own.U], axis=-1).swapaxes(0, 1)[: len(self.behaviours)] \
                 .astype(float)
+            out[..., :2] += self.origin
+            return out
         return self._get("own", build)
 
     @property
@@ -388,6 +468,7 @@ class PlanResult:
         def build():
             o = jax.device_get(self._ev.obstacles)
             obs = np.moveaxis(np.stack([o.x, o.y, o.chi, o.U], axis=-1), 0, 2).astype(float)
+            obs[..., :2] += self.origin
             return [obs[i, : ob.n_ps] for i, ob in enumerate(self._situation.obstacles)]
         return self._get("obs", build)
 
@@ -404,13 +485,16 @@ class PlanResult:
 
 
 def unpack(ev, situation: Situation, behaviours: np.ndarray, solve_time: float, per_polygon: bool = True,
-           status: str = "ok", names=None) -> PlanResult:
+           status: str = "ok", names=None, origin=None) -> PlanResult:
     """Device output (padded :class:`~psbmpc_jax.evaluate.Evaluation`) -> host :class:`PlanResult`
     (unpadded).  ``per_polygon=False`` (grid mode): there are no per-polygon grounding costs, ``costs["so"]``
-    is the cost of the nearest land.  ``names``: the cost columns in order (``("total",) + term names``)."""
-    return PlanResult(ev, situation, behaviours, solve_time, per_polygon=per_polygon, status=status, names=names)
+    is the cost of the nearest land.  ``names``: the cost columns in order (``("total",) + term names``).
+    ``origin``: the one the inputs were packed with (default :func:`default_origin`, as :func:`pack`)."""
+    return PlanResult(ev, situation, behaviours, solve_time, per_polygon=per_polygon, status=status, names=names,
+                      origin=origin)
 
 
 __all__ = ["SolveInputs", "OwnShipArrays", "ObstacleArrays", "WorldArrays", "ChartArrays", "GridArrays",
-           "BehaviourArrays", "Capacities", "pack", "pack_world", "pack_behaviours", "stack", "pad_behaviours", "SHARED_AXES", "bucket",
+           "BehaviourArrays", "Capacities", "pack", "pack_world", "shift_polygons", "default_origin", "snap_origin",
+           "ORIGIN_SNAP", "pack_behaviours", "stack", "pad_behaviours", "SHARED_AXES", "bucket",
            "bucket_scenarios", "bucket_behaviours", "PlanResult", "unpack"]

@@ -5,6 +5,11 @@
 
 Shapes are bucketed (obstacles, scenarios, waypoints, polygons, vertices, behaviours) so that a stream of
 situations with slowly varying sizes compiles a handful of times; values never recompile.
+
+Local origin (docs/algorithm.md §11): the device works relative to :attr:`Planner.origin`, chosen at the first
+solve as the own-ship position snapped to 1 km and kept (so the packed chart and the distance grid, cached by
+content and origin, stay valid from solve to solve) until the own-ship is more than
+:data:`RECENTRE_DISTANCE` (10 km) from it in either axis.  Results are in the user's frame.
 """
 
 from __future__ import annotations
@@ -19,13 +24,18 @@ from .costs.base import check_terms, term_names
 from .costs.collision import standard_normal_table
 from .distance_grid import DistanceGrid, build_distance_grid, polygons_key, reach_region
 from .evaluate import DEFAULT_TERMS
-from .packing import Capacities, PlanResult, SolveInputs, WorldArrays, pack, pack_behaviours, pack_world, unpack
+from .packing import (Capacities, PlanResult, SolveInputs, WorldArrays, pack, pack_behaviours, pack_world,
+                      shift_polygons, snap_origin, unpack)
 from .params import Params, PlannerConfig, params_as_arrays, validate_params
 from .situation import Situation
 from .solve import STATUS_NAMES, PlannerState, solve
 
 #: Cost columns of the default terms.
 COST_TERMS = term_names(DEFAULT_TERMS)
+
+#: A planner re-chooses its local origin when the own-ship is farther than this from it in north or east [m]:
+#: float32 spacing stays <= 1 mm out to 10 km (and the origin, cached world and grid rarely change).
+RECENTRE_DISTANCE = 10_000.0
 
 
 def check_dtype(config: PlannerConfig) -> None:
@@ -46,6 +56,11 @@ class Planner:
         terms: the cost terms (default :data:`psbmpc_jax.evaluate.DEFAULT_TERMS`: collision, COLREGS,
             grounding, path); add your own with :func:`psbmpc_jax.costs.base.cost_term`.
         capacities: fixed padded sizes (:class:`~psbmpc_jax.packing.Capacities`); default bucketed.
+
+    Attributes:
+        origin: the local origin (north, east) [m] of the device frame of the latest :meth:`prepare` (``None``
+            before the first); device arrays from :meth:`prepare` / :func:`~psbmpc_jax.solve.solve` are relative
+            to it (pass it to :func:`~psbmpc_jax.packing.unpack`).
     """
 
     def __init__(self, config: PlannerConfig | None = None, params: Params | None = None, behaviours=None,
@@ -61,7 +76,8 @@ class Planner:
         self.capacities = capacities
         self._grids: dict[str, DistanceGrid] = {}
         self._device_params: tuple | None = None      # (params object, its device arrays)
-        self._world: tuple | None = None              # (polygons content key, grid, packed world)
+        self._world: tuple | None = None              # (polygons content key, origin, grid, packed world)
+        self.origin: np.ndarray | None = None
         self._behaviour_arrays = pack_behaviours(self.behaviours, self.config, capacities)
 
     @property
@@ -69,33 +85,49 @@ class Planner:
         """``("total",) + term names``: the keys of :attr:`PlanResult.costs`."""
         return term_names(self.terms)
 
+    def _origin_for(self, situation: Situation) -> np.ndarray:
+        """The planner's local origin, (re-)chosen at the first solve and when the own-ship is more than
+        :data:`RECENTRE_DISTANCE` from it (module docstring)."""
+        pos = np.asarray(situation.own_ship.state[:2], dtype=float)
+        if self.origin is None or np.max(np.abs(pos - self.origin)) > RECENTRE_DISTANCE:
+            self.origin = snap_origin(pos)
+        return self.origin
+
     def distance_grid(self, situation: Situation) -> DistanceGrid:
         """The nearest-land grid for grid mode, covering everywhere the own-ship can reach in one horizon.
 
         No predicted position is farther than max(U_0, U_d)·T from the own-ship (speed references never
         exceed U_d and the speed lag is monotone), so the grid covers that disc; grids are cached per
-        chart and (snapped) region and rebuilt only when the own-ship moves out of them."""
+        chart, origin and (snapped) region and rebuilt only when the own-ship moves out of them.  The distances
+        are computed about the planner's local origin (full precision in float32 with UTM coordinates); the
+        grid returned is in the user's frame (its ``origin`` corner is float64 NumPy)."""
         own = situation.own_ship
+        o = self._origin_for(situation)
         reach = max(float(own.state[3]), float(own.U_d)) * self.config.T + 10.0
         region = reach_region(own.state[:2], reach)
-        key = polygons_key(situation.polygons, self.config.grid_spacing, self.config.grid_margin, region)
+        key = polygons_key(situation.polygons, self.config.grid_spacing, self.config.grid_margin, region) \
+            + f"@{o[0]!r},{o[1]!r}"
         if key not in self._grids:
-            self._grids[key] = build_distance_grid(situation.polygons, self.config.grid_spacing,
-                                                   self.config.grid_margin, dtype=np.dtype(self.config.dtype),
-                                                   region=region)
+            lo, hi = (np.asarray(c, dtype=float) - o for c in region)
+            grid = build_distance_grid(shift_polygons(situation.polygons, o), self.config.grid_spacing,
+                                       self.config.grid_margin, dtype=np.dtype(self.config.dtype),
+                                       region=(tuple(lo), tuple(hi)))
+            self._grids[key] = grid._replace(origin=lo + o)
         return self._grids[key]
 
     def _packed_world(self, situation: Situation) -> WorldArrays:
-        """The packed chart, reused while the situation carries the same polygons (content hash) and, in grid
-        mode, the same distance grid."""
+        """The packed chart about the planner's origin, reused while the situation carries the same polygons
+        (content hash), the origin is the same and, in grid mode, so is the distance grid."""
+        o = self._origin_for(situation)
         grid = (self.distance_grid(situation)
                 if self.config.grounding_mode == "grid" and situation.polygons else None)
         key = polygons_key(situation.polygons, 0.0, 0.0)
         cached = self._world
-        if cached is None or cached[0] != key or cached[1] is not grid:
-            cached = (key, grid, pack_world(situation.polygons, self.config, self.capacities, grid))
+        if cached is None or cached[0] != key or not np.array_equal(cached[1], o) or cached[2] is not grid:
+            cached = (key, o.copy(), grid, pack_world(situation.polygons, self.config, self.capacities, grid,
+                                                       origin=o))
             self._world = cached
-        return cached[2]
+        return cached[3]
 
     def init_state(self) -> PlannerState:
         return PlannerState()
@@ -110,15 +142,17 @@ class Planner:
 
     def prepare(self, situation: Situation, state: PlannerState | None = None, *, key=None,
                 params: Params | None = None) -> tuple[SolveInputs, PlannerState, Params, object]:
-        """Validated device inputs ``(inputs, state, params, samples)`` for :func:`psbmpc_jax.solve.solve`."""
+        """Validated device inputs ``(inputs, state, params, samples)`` for :func:`psbmpc_jax.solve.solve`,
+        positions relative to :attr:`origin` (set here)."""
         if not isinstance(situation, Situation):
             raise ValueError(f"situation must be a psbmpc_jax.Situation, got {type(situation).__name__}")
         state = state or self.init_state()
         if not isinstance(state, PlannerState):
             raise ValueError(f"state must be a PlannerState, got {type(state).__name__}")
         p = self._params(params)
+        origin = self._origin_for(situation)
         inputs = pack(situation, self.behaviours, self.config, capacities=self.capacities,
-                      world=self._packed_world(situation), behaviour_arrays=self._behaviour_arrays)
+                      world=self._packed_world(situation), behaviour_arrays=self._behaviour_arrays, origin=origin)
         samples = standard_normal_table(key, self.config, np.dtype(self.config.dtype))
         return inputs, state, p, samples
 
@@ -126,15 +160,16 @@ class Planner:
              params: Params | None = None) -> tuple[PlanResult, PlannerState]:
         """Solve once; returns the result and the next planner state (the applied first maneuver)."""
         inputs, state, p, samples = self.prepare(situation, state, key=key, params=params)
+        origin = self.origin
         t0 = time.perf_counter()
         plan, _, ev = solve(inputs, state, p, samples, config=self.config, terms=self.terms)
         status = int(plan.status)                  # waits for the device
         result = unpack(ev, situation, self.behaviours, time.perf_counter() - t0,
                         per_polygon=self.config.grounding_mode == "exact", status=STATUS_NAMES[status],
-                        names=self.cost_names)
+                        names=self.cost_names, origin=origin)
         if status:                                 # nothing to apply: keep the previous offsets
             return result, state
         return result, PlannerState((result.u_opt, result.chi_opt))
 
 
-__all__ = ["Planner", "PlannerState", "PlanResult", "COST_TERMS", "check_dtype"]
+__all__ = ["Planner", "PlannerState", "PlanResult", "COST_TERMS", "RECENTRE_DISTANCE", "check_dtype"]

@@ -119,7 +119,10 @@ def _sharded_fn(config: PlannerConfig, devices: tuple):
         best = jnp.argmin(total)
         beh = cut(inputs.behaviours.offsets)
         ev = Evaluation(best, beh[best], total, costs, details, own, obs, obs_cov[0], counters)
-        plan, nxt = select(ev, state)
+        # the same selection rule as solve() (docs/algorithm.md §11), on the unpadded behaviour table
+        inp = inputs._replace(behaviours=inputs.behaviours._replace(offsets=beh, mask=cut(inputs.behaviours.mask)))
+        plan, nxt = select(ev, state, inp, params, config)
+        ev = ev._replace(best=plan.best, best_offsets=plan.offsets)
         return plan, nxt, ev
 
     jitted = jax.jit(run, static_argnames=("n_b",))

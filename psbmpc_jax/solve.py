@@ -18,6 +18,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .costs.grounding import grounding_g
 from .evaluate import DEFAULT_TERMS, Evaluation, evaluate_arrays
 from .packing import SolveInputs
 from .params import Params, PlannerConfig
@@ -79,23 +80,154 @@ class Plan(NamedTuple):
     status: jax.Array
 
 
-def select(ev: Evaluation, state: PlannerState) -> tuple[Plan, PlannerState]:
-    """The chosen behaviour of a search and the next planner state (its first maneuver applied)."""
-    best = ev.best
+#: Totals within this many float epsilons (relative) of the minimum are ties (docs/algorithm.md §11).
+TIE_EPS = 8
+#: A cost that varies by less than this many float epsilons (relative) over the behaviours is "the same for
+#: every behaviour": a hazard at the present (docs/algorithm.md §11).
+SATURATION_EPS = 64
+
+
+def _same_for_all(x, valid, rtol):
+    """``x [B, ...]`` -> ``[...]``: positive and equal (to ``rtol``) over the valid behaviours."""
+    v = valid.reshape(valid.shape + (1,) * (x.ndim - 1))
+    hi = jnp.max(jnp.where(v, x, -jnp.inf), axis=0)
+    lo = jnp.min(jnp.where(v, x, jnp.inf), axis=0)
+    return (hi > 0) & jnp.isfinite(hi) & (hi - lo <= rtol * hi)
+
+
+def signed_distance(px, py, chart):
+    """Signed distance of points ``px, py [B]`` to every polygon of a packed chart
+    (:class:`~psbmpc_jax.packing.ChartArrays`): ``[P, B]``, negative inside (minus the distance to the
+    boundary; even-odd rule over the polygon's rings), +inf for padding polygons."""
+    n_v = chart.vertices.shape[1]
+
+    def one(_, poly):
+        verts, nxt, n, real = poly
+        ax, ay = verts[:, 0, None], verts[:, 1, None]                          # [V, 1]
+        bx, by = verts[nxt, 0][:, None], verts[nxt, 1][:, None]
+        edge = (jnp.arange(n_v) < n)[:, None]
+        ex, ey = bx - ax, by - ay
+        l2 = ex * ex + ey * ey
+        t = jnp.where(l2 > 0, jnp.clip(((px - ax) * ex + (py - ay) * ey) / jnp.where(l2 > 0, l2, 1.0), 0.0, 1.0),
+                      0.0)
+        qx, qy = ax + t * ex - px, ay + t * ey - py
+        d = jnp.sqrt(jnp.min(jnp.where(edge, qx * qx + qy * qy, jnp.inf), axis=0))
+        dy_ = jnp.where(by != ay, by - ay, 1.0)
+        cross = edge & ((ay > py) != (by > py)) & (px < ax + (py - ay) * (bx - ax) / dy_)
+        inside = (jnp.sum(cross, axis=0) % 2) == 1
+        return None, jnp.where(real, jnp.where(inside, -d, d), jnp.inf)
+
+    return jax.lax.scan(one, None, (chart.vertices, chart.next, chart.n, chart.mask))[1]
+
+
+def selection_cost(ev: Evaluation, inputs: SolveInputs, params: Params | None = None,
+                   config: PlannerConfig | None = None):
+    """The cost :func:`select` ranks the behaviours by (docs/algorithm.md §11): the total, except where a hazard
+    is at the present — a cost the same for every behaviour because its maximum over time is at t_0, which
+    every behaviour shares.  Such a cost says nothing about which behaviour escapes it, so it is replaced:
+
+    * collision: for every (obstacle, scenario) whose C is the same for every behaviour, C is replaced by its
+      maximum over the future steps k >= 1 (detail ``C_future``) and its COLREGS indicator is dropped (the
+      encounter classification is meaningless at zero range: the collision is in progress);
+    * grounding (needs ``params`` and ``config``): when some polygon's cost is the same for every behaviour
+      (own-ship inside land, or within d_safe of it and every behaviour moving away; in grid mode the
+      nearest-land cost as a whole), the saturated polygon with the smallest signed distance from the
+      own-ship now (the one it is in) is ranked by g at the horizon end with the signed distance to it
+      (negative inside land: the linear branch of g continued, so the cost keeps decreasing towards the
+      boundary and beyond it); other saturated polygons (within d_safe of two pieces of land at once) are
+      left out of the ranking — their cost is the same for every behaviour.
+
+    Terms without their details (custom terms) are left as they are.  Returns ``rank [B]``."""
+    total = ev.total
+    dtype = total.dtype
+    valid = inputs.behaviours.mask & jnp.isfinite(total)
+    rtol = SATURATION_EPS * jnp.finfo(dtype).eps
+    adj = jnp.zeros_like(total)
+    hazard = jnp.asarray(False)
+    det, costs = ev.details, ev.costs
+    if "C" in det and "C_future" in det and "do" in costs:
+        obs = inputs.obstacles
+        w = ((obs.weight * obs.mask)[:, None] * obs.probs).astype(dtype)             # [O, S]
+        sat = _same_for_all(det["C"], valid, rtol) & (w > 0)
+        adj = adj - jnp.sum(jnp.where(sat, w * (det["C"] - det["C_future"]), 0.0), axis=(1, 2))
+        if "mu" in det and "colregs" in costs and params is not None:
+            adj = adj - params.kappa * jnp.sum(jnp.where(sat, w * det["mu"], 0.0), axis=(1, 2))
+        hazard = hazard | jnp.any(sat)
+    chart = inputs.world.polygons
+    if ("so_j" in det and "so" in costs and params is not None and config is not None
+            and chart.mask.shape[0] > 0):
+        so_j = det["so_j"]                                                           # [B, P] or [B, 1] (grid)
+        grid = config.grounding_mode == "grid"
+        sat_j = _same_for_all(so_j, valid, rtol)
+        any_sat = jnp.any(sat_j)
+        t_end = jnp.asarray(config.n_steps * config.dt, dtype)
+        # the saturated polygon the own-ship is in (or nearest to) now gets the escape cost
+        s_now = signed_distance(ev.own.x[0, :1], ev.own.y[0, :1], chart)[:, 0]      # [P], one point: cheap
+        j = jnp.argmin(jnp.where(chart.mask if grid else sat_j & chart.mask, s_now, jnp.inf))
+
+        def escape(_):
+            one = jax.tree.map(lambda a: a[j][None], chart)
+            s_end = signed_distance(ev.own.x[-1], ev.own.y[-1], one)[0]             # [B] at the horizon end
+            return grounding_g(s_end, t_end, 0.0, params).astype(dtype)
+
+        g_end = jax.lax.cond(any_sat, escape, lambda _: jnp.zeros_like(total), None)
+        if grid:
+            so_sel = jnp.where(sat_j[0], g_end, so_j[:, 0])
+        else:
+            so_sel = jnp.maximum(jnp.max(jnp.where(sat_j, 0.0, so_j), axis=1, initial=0.0), g_end)
+        adj = adj + jnp.where(any_sat, so_sel - costs["so"], 0.0)
+        hazard = hazard | any_sat
+    rank = jnp.where(hazard, total + adj, total)
+    return jnp.where(jnp.isfinite(rank), rank, total)
+
+
+def break_ties(rank, valid, offsets):
+    """Index of the smallest ``rank`` among ``valid`` behaviours; ranks within :data:`TIE_EPS` float epsilons
+    (relative) of it are ties, broken by the first maneuver: the smallest course offset |chi_1|, then
+    starboard (chi_1 >= 0) before port, then the highest speed factor u_1, then the lowest index.  -1 when no
+    behaviour is valid."""
+    r = jnp.where(valid, rank, jnp.inf)
+    m = jnp.min(r)
+    tol = TIE_EPS * jnp.finfo(r.dtype).eps * jnp.maximum(jnp.abs(m), jnp.finfo(r.dtype).tiny)
+    cand = valid & (r <= m + tol)
+    u1, chi1 = offsets[:, 0, 0], offsets[:, 0, 1]
+    a = jnp.abs(chi1)
+    cand = cand & (a <= jnp.min(jnp.where(cand, a, jnp.inf)))
+    stbd = chi1 >= 0
+    cand = cand & jnp.where(jnp.any(cand & stbd), stbd, True)
+    cand = cand & (u1 >= jnp.max(jnp.where(cand, u1, -jnp.inf)))
+    return jnp.where(jnp.any(cand), jnp.argmax(cand), -1).astype(jnp.int32)
+
+
+def select(ev: Evaluation, state: PlannerState, inputs: SolveInputs | None = None, params: Params | None = None,
+           config: PlannerConfig | None = None) -> tuple[Plan, PlannerState]:
+    """The chosen behaviour of a search and the next planner state (its first maneuver applied).
+
+    With ``inputs`` (and ``params``, ``config``: :func:`solve` passes them) the choice is the smallest
+    :func:`selection_cost` with ties broken by :func:`break_ties` (docs/algorithm.md §11); without, it is
+    ``ev.best`` (the plain argmin of the totals, ties to the lowest index)."""
+    best, best_offsets = ev.best, ev.best_offsets
+    if inputs is not None:
+        valid = inputs.behaviours.mask & jnp.isfinite(ev.total)
+        pick = break_ties(selection_cost(ev, inputs, params, config), valid, inputs.behaviours.offsets)
+        best = jnp.where(pick >= 0, pick, ev.best).astype(jnp.asarray(ev.best).dtype)
+        best_offsets = jnp.asarray(inputs.behaviours.offsets)[best]
     total = ev.total[best]
     status = jnp.where(jnp.isfinite(total), STATUS_OK, STATUS_NO_FINITE_BEHAVIOUR).astype(jnp.int32)
-    plan = Plan(best, ev.best_offsets, total, {k: v[best] for k, v in ev.costs.items()}, status)
-    last = jnp.asarray(state.last_offsets, ev.best_offsets.dtype)
-    nxt = _state_from_leaves(None, (jnp.where(status == STATUS_OK, ev.best_offsets[0], last), state.warm_start))
+    plan = Plan(best, best_offsets, total, {k: v[best] for k, v in ev.costs.items()}, status)
+    last = jnp.asarray(state.last_offsets, best_offsets.dtype)
+    nxt = _state_from_leaves(None, (jnp.where(status == STATUS_OK, best_offsets[0], last), state.warm_start))
     return plan, nxt
 
 
 def solve_arrays(inputs: SolveInputs, state: PlannerState, params: Params, samples, config: PlannerConfig,
                  terms=DEFAULT_TERMS) -> tuple[Plan, PlannerState, Evaluation]:
-    """Un-jitted solve step (vmap it, or jit it through :func:`solve`)."""
+    """Un-jitted solve step (vmap it, or jit it through :func:`solve`).  The evaluation returned carries the
+    selected behaviour in ``best`` / ``best_offsets``."""
+    inputs = jax.tree.map(jnp.asarray, inputs)
     ev = evaluate_arrays(inputs, state.last_offsets, params, samples, config, terms)
-    plan, nxt = select(ev, state)
-    return plan, nxt, ev
+    plan, nxt = select(ev, state, inputs, params, config)
+    return plan, nxt, ev._replace(best=plan.best, best_offsets=plan.offsets)
 
 
 @partial(jax.jit, static_argnames=("config",))
@@ -106,5 +238,5 @@ def solve(inputs: SolveInputs, state: PlannerState, params: Params, samples, con
     return solve_arrays(inputs, state, params, samples, config, terms)
 
 
-__all__ = ["PlannerState", "Plan", "select", "solve", "solve_arrays", "STATUS_OK", "STATUS_NO_FINITE_BEHAVIOUR",
-           "STATUS_NAMES"]
+__all__ = ["PlannerState", "Plan", "select", "selection_cost", "break_ties", "signed_distance", "solve",
+           "solve_arrays", "STATUS_OK", "STATUS_NO_FINITE_BEHAVIOUR", "STATUS_NAMES", "TIE_EPS", "SATURATION_EPS"]

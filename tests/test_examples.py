@@ -39,8 +39,9 @@ def _selected(session) -> list[str]:
 def started(request, tmp_path_factory):
     """Start every selected example at once; ``{name: (process, stdout file, output folder)}``."""
     env = dict(os.environ, PSBMPC_EXAMPLE_QUICK="1", PYTHONUNBUFFERED="1")
-    if not os.environ.get("PSBMPC_TEST_NO_JAX_CACHE"):
-        env.setdefault("JAX_COMPILATION_CACHE_DIR", str(request.config.cache.mkdir("jax-compilation-cache")))
+    cache = getattr(request.config, "cache", None)            # None under -p no:cacheprovider
+    if cache is not None and not os.environ.get("PSBMPC_TEST_NO_JAX_CACHE"):
+        env.setdefault("JAX_COMPILATION_CACHE_DIR", str(cache.mkdir("jax-compilation-cache")))
         env.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0.5")
     procs = {}
     for name in _selected(request.session):

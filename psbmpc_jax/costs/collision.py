@@ -184,9 +184,15 @@ def pair_geometry(ctx: Context):
     return dx, dy, ctx.scen_valid.reshape(n_os)
 
 
+#: Rows per chunk of the tail of the compact collision kernel (see :func:`collision_kernel`).
+TAIL_ROWS = 64
+
+
 def collision_kernel(ctx: Context, params, config, samples):
     """C [B, O·S] = max_k ζ_i K_coll ‖v_0 − v_i‖² P̂ e^{−t_k/T_d} over the points that pass the σ-shortcut
-    (distance ≤ R + c_σ σ_max), and the number of (row, time-block) pairs the estimator evaluated.
+    (distance ≤ R + c_σ σ_max), the same maximum over the future steps k ≥ 1 only (``C_future``: k = 0 is the
+    present, the same for every behaviour; used by the selection, docs/algorithm.md §11), and the number of
+    (row, time-block) pairs the estimator evaluated.
 
     Everything is time-major ([T, O·S, B]): reductions over time run over the leading axis, so the inner,
     vectorised axis is always the long behaviour axis (measured 2x faster than [B, O·S, T] on XLA:CPU).
@@ -194,7 +200,10 @@ def collision_kernel(ctx: Context, params, config, samples):
     Layouts: ``ctx.dense`` or ``config.pc_layout == "dense"`` evaluates every point (differentiable; the
     shortcut is a ``where``).  Otherwise ("compact", the grid search's fast path) a cheap dense pass finds
     the points that pass the shortcut, the (row, time-block) pairs holding one are compacted and only those
-    are sent, ``chunk_rows`` at a time, through the (expensive) estimator."""
+    are sent through the (expensive) estimator: full chunks of ``chunk_rows`` items while at least that many
+    are left, then the rest in chunks of :data:`TAIL_ROWS` (64), so a small problem (77 items, say) pays for
+    at most 63 padding items instead of ``chunk_rows - 1``.  Every item's value is the same whichever chunk
+    computes it (the maximum into the accumulators does not depend on the order)."""
     own, obs, t = ctx.own, ctx.obstacles, ctx.t
     n_t, n_b = own.x.shape
     n_o, n_s = obs.x.shape[1:]
@@ -231,7 +240,7 @@ def collision_kernel(ctx: Context, params, config, samples):
                             sxx[:, o_of, None], sxy[:, o_of, None], syy[:, o_of, None], r_os[None, :, None],
                             zk_os[None, :, None], disc[:, None, None], active)
         n_blocks = jnp.sum(jnp.any(active.reshape(n_blk, tb, n_os, n_b), axis=1))
-        return jnp.max(terms, axis=0).T, n_blocks
+        return jnp.max(terms, axis=0).T, jnp.max(terms[1:], axis=0).T, n_blocks
 
     # compact: the (row, time-block) pairs holding an active point, per row (o·s, l) from its first to its
     # last such block (one contiguous run of items per row), enumerated by a cumsum over the rows
@@ -242,44 +251,59 @@ def collision_kernel(ctx: Context, params, config, samples):
     n_items = jnp.maximum(b_last - b_first + 1, 0).astype(jnp.int32)
     ends = jnp.cumsum(n_items)
     total_items = ends[-1]
-    chunk = config.chunk_rows
     blk3 = lambda a: a.reshape((n_blk, tb) + a.shape[1:])                       # [nblk, tb, ...]
     px3, py3, vx3, vy3 = blk3(px), blk3(py), blk3(vx), blk3(vy)
     qx3, qy3 = blk3(flat(obs.x)), blk3(flat(obs.y))
     wx3, wy3, thr3 = blk3(wx), blk3(wy), blk3(thr_os)
     sxx3, sxy3, syy3 = blk3(sxx), blk3(sxy), blk3(syy)
     disc2, tval2 = disc.reshape(n_blk, tb), t_valid.reshape(n_blk, tb)
+    future2 = (jnp.arange(n_blk * tb) >= 1).reshape(n_blk, tb)                  # k >= 1
 
-    def body(state):
-        c, acc = state
-        q = c * chunk + jnp.arange(chunk, dtype=jnp.int32)
-        ok = q < total_items
-        row = jnp.minimum(jnp.searchsorted(ends, q, side="right"), n_b * n_os - 1).astype(jnp.int32)
-        blk = jnp.where(ok, b_first[row] + q - (ends[row] - n_items[row]), 0)
-        os_, l = row // n_b, row % n_b
-        o = os_ // n_s
-        g = lambda a3, idx: a3[blk, :, idx]                                     # [chunk, tb] windows
-        dx_ = g(qx3, os_) - g(px3, l)
-        dy_ = g(qy3, os_) - g(py3, l)
-        act = (dx_ * dx_ + dy_ * dy_ <= g(thr3, os_) ** 2) & tval2[blk] & ok[:, None]
-        # materialise the gathered windows once: otherwise XLA may fuse the gathers into the estimator's
-        # per-sample loop and redo them for every sample (measured 3x slower for mc)
-        win = jax.lax.optimization_barrier(
-            (dx_, dy_, g(wx3, os_) - g(vx3, l), g(wy3, os_) - g(vy3, l), g(sxx3, o), g(sxy3, o), g(syy3, o), act))
-        terms = point_terms(*win[:7], r_os[os_][:, None], zk_os[os_][:, None], disc2[blk], win[7])
-        acc = acc.at[row].max(jnp.where(ok, jnp.max(terms, axis=-1), 0.0))
-        return c + 1, acc
+    def run(chunk: int, start, stop, accs):
+        """Items ``start .. stop-1`` (``stop - start`` a multiple of ``chunk`` or the last, partial chunk)."""
+        def body(state):
+            q0, acc, acc_f = state
+            q = q0 + jnp.arange(chunk, dtype=jnp.int32)
+            ok = q < total_items
+            row = jnp.minimum(jnp.searchsorted(ends, q, side="right"), n_b * n_os - 1).astype(jnp.int32)
+            blk = jnp.where(ok, b_first[row] + q - (ends[row] - n_items[row]), 0)
+            os_, l = row // n_b, row % n_b
+            o = os_ // n_s
+            g = lambda a3, idx: a3[blk, :, idx]                                 # [chunk, tb] windows
+            dx_ = g(qx3, os_) - g(px3, l)
+            dy_ = g(qy3, os_) - g(py3, l)
+            act = (dx_ * dx_ + dy_ * dy_ <= g(thr3, os_) ** 2) & tval2[blk] & ok[:, None]
+            # materialise the gathered windows once: otherwise XLA may fuse the gathers into the estimator's
+            # per-sample loop and redo them for every sample (measured 3x slower for mc)
+            win = jax.lax.optimization_barrier(
+                (dx_, dy_, g(wx3, os_) - g(vx3, l), g(wy3, os_) - g(vy3, l), g(sxx3, o), g(sxy3, o), g(syy3, o),
+                 act))
+            terms = point_terms(*win[:7], r_os[os_][:, None], zk_os[os_][:, None], disc2[blk], win[7])
+            acc = acc.at[row].max(jnp.where(ok, jnp.max(terms, axis=-1), 0.0))
+            acc_f = acc_f.at[row].max(jnp.where(ok, jnp.max(jnp.where(future2[blk], terms, 0.0), axis=-1), 0.0))
+            return q0 + chunk, acc, acc_f
 
-    acc0 = jnp.zeros((n_os * n_b,), dtype)
-    _, acc = jax.lax.while_loop(lambda s: s[0] * chunk < total_items, body, (jnp.int32(0), acc0))
-    return acc.reshape(n_os, n_b).T, total_items
+        state = jax.lax.while_loop(lambda st: st[0] < stop, body, (start, *accs))
+        return state[1:]
+
+    acc0 = (jnp.zeros((n_os * n_b,), dtype), jnp.zeros((n_os * n_b,), dtype))
+    chunk = config.chunk_rows
+    if chunk <= TAIL_ROWS:
+        accs = run(chunk, jnp.int32(0), total_items, acc0)
+    else:
+        bulk = (total_items // chunk) * chunk                                   # full chunks
+        accs = run(chunk, jnp.int32(0), bulk, acc0)
+        accs = run(TAIL_ROWS, bulk, total_items, accs)                          # the rest, < chunk items
+    acc, acc_f = accs
+    return acc.reshape(n_os, n_b).T, acc_f.reshape(n_os, n_b).T, total_items
 
 
 @cost_term
 class CollisionTerm:
     """H_do = Σ_i w_i Σ_s P_s C_s^{l,i} (eqs. 10, 14): the collision probability of each (obstacle,
     scenario) times the kinetic-energy factor ζ_i K_coll ‖v_0 − v_i‖² and the discount e^{−t/T_d}, maximised
-    over time, with the σ-shortcut.  Details: ``C [B, O, S]``; counter ``n_pc_blocks``."""
+    over time, with the σ-shortcut.  Details: ``C [B, O, S]`` and ``C_future [B, O, S]`` (the same maximum over
+    k >= 1 only; the selection's present-hazard rule, docs/algorithm.md §11); counter ``n_pc_blocks``."""
 
     name = "do"
     PARAMS = ("d_safe", "K_coll", "T_d", "c_sigma", "ce_rho", "ce_alpha", "ce_chi2")
@@ -287,6 +311,7 @@ class CollisionTerm:
 
     def __call__(self, ctx: Context, params, config, samples) -> TermValue:
         n_o, n_s = ctx.scen_weight.shape
-        c_flat, n_blocks = collision_kernel(ctx, params, config, samples)
+        c_flat, cf_flat, n_blocks = collision_kernel(ctx, params, config, samples)
         c = c_flat.reshape(-1, n_o, n_s)
-        return TermValue(jnp.sum(ctx.scen_weight[None] * c, axis=(1, 2)), {"C": c}, {"n_pc_blocks": n_blocks})
+        return TermValue(jnp.sum(ctx.scen_weight[None] * c, axis=(1, 2)),
+                         {"C": c, "C_future": cf_flat.reshape(-1, n_o, n_s)}, {"n_pc_blocks": n_blocks})
