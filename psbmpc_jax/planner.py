@@ -22,6 +22,7 @@ import numpy as np
 from .behaviours import paper_behaviours, validate_behaviours
 from .costs.base import check_terms, term_names
 from .costs.collision import standard_normal_table
+from . import checks
 from .distance_grid import DistanceGrid, build_distance_grid, polygons_key, reach_region
 from .evaluate import DEFAULT_TERMS
 from .packing import (Capacities, PlanResult, SolveInputs, WorldArrays, pack, pack_behaviours, pack_world,
@@ -70,8 +71,8 @@ class Planner:
             raise ValueError(f"config must be a PlannerConfig, got {type(self.config).__name__}")
         check_dtype(self.config)
         self.params = params or Params()
-        validate_params(self.params)
         self.behaviours = validate_behaviours(paper_behaviours(2) if behaviours is None else behaviours)
+        validate_params(self.params, self.config, self.behaviours.shape[1])   # t_ts inside the horizon too
         self.terms = check_terms(DEFAULT_TERMS if terms is None else terms)
         self.capacities = capacities
         self._grids: dict[str, DistanceGrid] = {}
@@ -136,7 +137,7 @@ class Planner:
         """Validated device copy of ``params`` (cached for the planner's own and the last one passed)."""
         params = params or self.params
         if self._device_params is None or self._device_params[0] is not params:
-            validate_params(params)
+            validate_params(params, self.config, self.behaviours.shape[1])
             self._device_params = (params, jax.device_put(params_as_arrays(params, np.dtype(self.config.dtype))))
         return self._device_params[1]
 
@@ -153,6 +154,8 @@ class Planner:
         origin = self._origin_for(situation)
         inputs = pack(situation, self.behaviours, self.config, capacities=self.capacities,
                       world=self._packed_world(situation), behaviour_arrays=self._behaviour_arrays, origin=origin)
+        if self.config.estimator != "quadrature" and key is not None:
+            checks.prng_key(key, "key")
         samples = standard_normal_table(key, self.config, np.dtype(self.config.dtype))
         return inputs, state, p, samples
 

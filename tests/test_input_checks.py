@@ -212,3 +212,15 @@ def test_unknown_keys_suggest_the_close_name():
         scenario_from_dict({"nam": "x"})
     with pytest.raises(ValueError, match=r"did you mean 'K_coll' for 'K_col'"):
         presets.build_mpc("nidelva", param_overrides={"K_col": 1.0})
+
+
+def test_planner_refuses_t_ts_beyond_the_horizon_and_a_bad_key():
+    from psbmpc_jax import Params, Planner, PlannerConfig
+
+    with pytest.raises(ValueError, match="t_ts"):
+        Planner(PlannerConfig(T=60.0), params=Params(t_ts=100.0))
+    with pytest.raises(ValueError, match="key"):
+        from psbmpc_jax import Obstacle, OwnShip, Situation
+
+        own = OwnShip([0.0, 0.0, 0.0, 2.0], [[0.0, 0.0], [500.0, 0.0]], 2.0)
+        Planner(PlannerConfig(estimator="mc")).prepare(Situation(own, ()), key=12345)
