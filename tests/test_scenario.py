@@ -103,10 +103,10 @@ def test_input_is_not_modified():
 # ============================================================================================ validation errors
 ERRORS = [
     # unknown keys, at every level
-    ("unknown_top", _top("simulaton", {}), r"unknown key 'simulaton' in the scenario \(top level\); allowed keys: "
-                                           r"name, description, simulation"),
+    ("unknown_top", _top("simulaton", {}), r"unknown key 'simulaton' in the scenario \(top level\) \(did you mean "
+                                           r"'simulation'\?\); allowed keys: name, description, simulation"),
     ("unknown_own", _set(own, "heading_deg", 0), r"unknown key 'heading_deg' in own_ship; allowed keys: .*course_deg"),
-    ("unknown_target", _set(tgt, "speed", 2), r"unknown key 'speed' in targets\[0\]; allowed keys: .*speed_mps"),
+    ("unknown_target", _set(tgt, "speed", 2), r"unknown key 'speed' in targets\[0\].*; allowed keys: .*speed_mps"),
     ("unknown_sim", _set(lambda d: d["simulation"], "steps", 3), r"unknown key 'steps' in simulation"),
     ("unknown_mpc", _set(lambda d: d["mpc"], "period_s", 3), r"unknown key 'period_s' in mpc"),
     ("unknown_sensor", _top("sensor", {"position_std": 3}), r"unknown key 'position_std' in sensor"),
@@ -160,7 +160,7 @@ ERRORS = [
     ("config_name", _set(lambda d: d["mpc"], "config", {"horizon": 100}),
      r"unknown PlannerConfig field\(s\) \['horizon'\]; allowed: .*'T'"),
     ("params_name", _set(lambda d: d["mpc"], "params", {"dsafe": 5}),
-     r"unknown Params field\(s\) \['dsafe'\]; allowed: .*'d_safe'"),
+     r"unknown Params field\(s\) \['dsafe'\] \(did you mean 'd_safe' for 'dsafe'\?\); allowed: .*'d_safe'"),
     ("params_wind_dir_rad", _set(lambda d: d["mpc"], "params", {"wind_dir": 1.0}), r"use wind_dir_deg"),
     ("config_value", _set(lambda d: d["mpc"], "config", {"estimator": "magic"}),
      r"PlannerConfig.estimator must be one of"),
