@@ -160,13 +160,10 @@ def utm_zone_for(lon: float, lat: float) -> int:
     return int((lon + 180.0) // 6.0) % 60 + 1
 
 
-def lonlat_to_utm(lon, lat, zone: int, *, south: bool = False, datum: str = "WGS84"):
-    """Project lon/lat [deg] to UTM (east, north) [m] in ``zone`` (transverse Mercator, Krueger n^6)."""
-    zone = _check_zone(zone)
-    a, f = _ELLIPSOIDS[datum]
-    A, alpha, _ = _tm_series(f)
-    e = math.sqrt(f * (2.0 - f))
-    lam = np.radians(np.asarray(lon, float)) - math.radians(6.0 * zone - 183.0)
+def tm_forward(lat, lon, lon0: float, e: float, alpha):
+    """Transverse Mercator (Krueger n^6, Karney 2011): lat/lon [deg] -> the normalised (xi, eta) about the
+    central meridian ``lon0`` [deg]; multiply by k0 a A for metres."""
+    lam = np.radians(np.asarray(lon, float)) - math.radians(lon0)
     lam = (lam + np.pi) % (2 * np.pi) - np.pi
     tau = np.tan(np.radians(np.asarray(lat, float)))
     sig = np.sinh(e * np.arctanh(e * tau / np.sqrt(1.0 + tau ** 2)))
@@ -177,20 +174,12 @@ def lonlat_to_utm(lon, lat, zone: int, *, south: bool = False, datum: str = "WGS
     for j, al in enumerate(alpha, start=1):
         xi = xi + al * np.sin(2 * j * xip) * np.cosh(2 * j * etap)
         eta = eta + al * np.cos(2 * j * xip) * np.sinh(2 * j * etap)
-    east = _FALSE_E + _K0 * a * A * eta
-    north = _K0 * a * A * xi + (_FALSE_N_SOUTH if south else 0.0)
-    return east, north
+    return xi, eta
 
 
-def utm_to_lonlat(east, north, zone: int, *, south: bool = False, datum: str = "WGS84"):
-    """Inverse of :func:`lonlat_to_utm`: UTM (east, north) [m] -> (lon, lat) [deg]."""
-    zone = _check_zone(zone)
-    a, f = _ELLIPSOIDS[datum]
-    A, _, beta = _tm_series(f)
-    e2 = f * (2.0 - f)
-    e = math.sqrt(e2)
-    xi = (np.asarray(north, float) - (_FALSE_N_SOUTH if south else 0.0)) / (_K0 * a * A)
-    eta = (np.asarray(east, float) - _FALSE_E) / (_K0 * a * A)
+def tm_inverse(xi, eta, e: float, beta):
+    """Inverse of :func:`tm_forward`: normalised (xi, eta) -> (lat [deg], lon − lon0 [deg])."""
+    e2 = e * e
     xip, etap = xi.copy(), eta.copy()
     for j, be in enumerate(beta, start=1):
         xip = xip - be * np.sin(2 * j * xi) * np.cosh(2 * j * eta)
@@ -203,8 +192,30 @@ def utm_to_lonlat(east, north, zone: int, *, south: bool = False, datum: str = "
         taui = tau * np.sqrt(1.0 + sig ** 2) - sig * np.sqrt(1.0 + tau ** 2)
         tau = tau + (taup - taui) / np.sqrt(1.0 + taui ** 2) * (1.0 + (1.0 - e2) * tau ** 2) / (
             (1.0 - e2) * np.sqrt(1.0 + tau ** 2))
-    lon = np.degrees(lam) + (6.0 * zone - 183.0)
-    return (lon + 180.0) % 360.0 - 180.0, np.degrees(np.arctan(tau))
+    return np.degrees(np.arctan(tau)), np.degrees(lam)
+
+
+def lonlat_to_utm(lon, lat, zone: int, *, south: bool = False, datum: str = "WGS84"):
+    """Project lon/lat [deg] to UTM (east, north) [m] in ``zone`` (transverse Mercator, Krueger n^6)."""
+    zone = _check_zone(zone)
+    a, f = _ELLIPSOIDS[datum]
+    A, alpha, _ = _tm_series(f)
+    xi, eta = tm_forward(lat, lon, 6.0 * zone - 183.0, math.sqrt(f * (2.0 - f)), alpha)
+    east = _FALSE_E + _K0 * a * A * eta
+    north = _K0 * a * A * xi + (_FALSE_N_SOUTH if south else 0.0)
+    return east, north
+
+
+def utm_to_lonlat(east, north, zone: int, *, south: bool = False, datum: str = "WGS84"):
+    """Inverse of :func:`lonlat_to_utm`: UTM (east, north) [m] -> (lon, lat) [deg]."""
+    zone = _check_zone(zone)
+    a, f = _ELLIPSOIDS[datum]
+    A, _, beta = _tm_series(f)
+    xi = (np.asarray(north, float) - (_FALSE_N_SOUTH if south else 0.0)) / (_K0 * a * A)
+    eta = (np.asarray(east, float) - _FALSE_E) / (_K0 * a * A)
+    lat, dlon = tm_inverse(xi, eta, math.sqrt(f * (2.0 - f)), beta)
+    lon = dlon + (6.0 * zone - 183.0)
+    return (lon + 180.0) % 360.0 - 180.0, lat
 
 
 def convert_utm(east, north, from_zone: int, to_zone: int, *, from_south: bool = False,

@@ -26,7 +26,7 @@ import math
 
 import numpy as np
 
-from .charts import tm_coefficients
+from .charts import tm_coefficients, tm_forward, tm_inverse
 
 __all__ = ["latlon_to_ned", "ned_to_latlon", "check_latlon", "LATLON_MAX_DISTANCE_M"]
 
@@ -51,55 +51,24 @@ def check_latlon(lat, lon, name: str) -> tuple[float, float]:
     return lat, lon
 
 
-def _series(datum: str):
-    return tm_coefficients(datum)
-
-
-def _xi_eta(lat, lon, lon0, e, alpha):
-    lam = np.radians(np.asarray(lon, float) - lon0)
-    lam = (lam + np.pi) % (2 * np.pi) - np.pi
-    tau = np.tan(np.radians(np.asarray(lat, float)))
-    sig = np.sinh(e * np.arctanh(e * tau / np.sqrt(1.0 + tau ** 2)))
-    taup = tau * np.sqrt(1.0 + sig ** 2) - sig * np.sqrt(1.0 + tau ** 2)
-    xip = np.arctan2(taup, np.cos(lam))
-    etap = np.arcsinh(np.sin(lam) / np.sqrt(taup ** 2 + np.cos(lam) ** 2))
-    xi, eta = xip.copy(), etap.copy()
-    for j, al in enumerate(alpha, start=1):
-        xi = xi + al * np.sin(2 * j * xip) * np.cosh(2 * j * etap)
-        eta = eta + al * np.cos(2 * j * xip) * np.sinh(2 * j * etap)
-    return xi, eta
-
-
 def latlon_to_ned(lat, lon, origin_lat: float, origin_lon: float, *, datum: str = "WGS84") -> np.ndarray:
     """Degrees ``lat, lon`` (scalars or arrays) -> local ``[..., 2]`` (north, east) [m] about the origin, by the
     local transverse Mercator projection described in the module docstring."""
-    a, f, A, alpha, _ = _series(datum)
+    a, f, A, alpha, _ = tm_coefficients(datum)
     e = math.sqrt(f * (2.0 - f))
-    xi, eta = _xi_eta(lat, lon, origin_lon, e, alpha)
-    xi0, _ = _xi_eta(origin_lat, origin_lon, origin_lon, e, alpha)
+    xi, eta = tm_forward(lat, lon, origin_lon, e, alpha)
+    xi0, _ = tm_forward(origin_lat, origin_lon, origin_lon, e, alpha)
     return np.stack([a * A * (xi - xi0), a * A * eta], axis=-1)
 
 
 def ned_to_latlon(north, east, origin_lat: float, origin_lon: float, *,
                   datum: str = "WGS84") -> tuple[np.ndarray, np.ndarray]:
     """Inverse of :func:`latlon_to_ned`: local (north, east) [m] -> (lat, lon) [deg]."""
-    a, f, A, alpha, beta = _series(datum)
-    e2 = f * (2.0 - f)
-    e = math.sqrt(e2)
-    xi0, _ = _xi_eta(origin_lat, origin_lon, origin_lon, e, alpha)
+    a, f, A, alpha, beta = tm_coefficients(datum)
+    e = math.sqrt(f * (2.0 - f))
+    xi0, _ = tm_forward(origin_lat, origin_lon, origin_lon, e, alpha)
     xi = np.asarray(north, float) / (a * A) + xi0
     eta = np.asarray(east, float) / (a * A)
-    xip, etap = xi.copy(), eta.copy()
-    for j, be in enumerate(beta, start=1):
-        xip = xip - be * np.sin(2 * j * xi) * np.cosh(2 * j * eta)
-        etap = etap - be * np.cos(2 * j * xi) * np.sinh(2 * j * eta)
-    taup = np.sin(xip) / np.sqrt(np.sinh(etap) ** 2 + np.cos(xip) ** 2)
-    lam = np.arctan2(np.sinh(etap), np.cos(xip))
-    tau = taup.copy()
-    for _ in range(6):  # Newton on tau'(tau) = taup (Karney 2011, eqs. 19-21)
-        sig = np.sinh(e * np.arctanh(e * tau / np.sqrt(1.0 + tau ** 2)))
-        taui = tau * np.sqrt(1.0 + sig ** 2) - sig * np.sqrt(1.0 + tau ** 2)
-        tau = tau + (taup - taui) / np.sqrt(1.0 + taui ** 2) * (1.0 + (1.0 - e2) * tau ** 2) / (
-            (1.0 - e2) * np.sqrt(1.0 + tau ** 2))
-    lon = np.degrees(lam) + origin_lon
-    return np.degrees(np.arctan(tau)), (lon + 180.0) % 360.0 - 180.0
+    lat, dlon = tm_inverse(xi, eta, e, beta)
+    lon = dlon + origin_lon
+    return lat, (lon + 180.0) % 360.0 - 180.0
