@@ -231,6 +231,17 @@ def _check_common(term) -> None:
     check_choice("aggregation", term.aggregation, AGGREGATIONS)
 
 
+def _check_collision(term) -> None:
+    """The collision-risk fields shared by :class:`SmoothCollisionTerm` and :class:`SbmpcHazardTerm`."""
+    check_param("d_safe", term.d_safe, lo=0.0, lo_open=True)
+    check_param("K_coll", term.K_coll, lo=0.0)
+    check_param("p", term.p, lo=0.0)
+    check_param("q", term.q, lo=0.0)
+    check_param("w_coll", term.w_coll, lo=0.0, lo_open=True)
+    _check_common(term)
+    check_choice("risk", term.risk, RISK_FORMS)
+
+
 @smooth_cost_term("aggregation", "risk")
 class SmoothCollisionTerm:
     """Collision cost of Smooth-SBMPC: h = σ_coll(d)·K_coll‖v_o − v_i‖²·R(d, τ) per (target, τ) (eqs. 16-18;
@@ -253,13 +264,7 @@ class SmoothCollisionTerm:
     risk: str = "smooth"
 
     def __post_init__(self):
-        check_param("d_safe", self.d_safe, lo=0.0, lo_open=True)
-        check_param("K_coll", self.K_coll, lo=0.0)
-        check_param("p", self.p, lo=0.0)
-        check_param("q", self.q, lo=0.0)
-        check_param("w_coll", self.w_coll, lo=0.0, lo_open=True)
-        _check_common(self)
-        check_choice("risk", self.risk, RISK_FORMS)
+        _check_collision(self)
 
     @property
     def smooth(self) -> bool:
@@ -348,15 +353,9 @@ class SbmpcHazardTerm:
     completion: str = "default_false"
 
     def __post_init__(self):
-        check_param("d_safe", self.d_safe, lo=0.0, lo_open=True)
-        check_param("K_coll", self.K_coll, lo=0.0)
-        check_param("p", self.p, lo=0.0)
-        check_param("q", self.q, lo=0.0)
-        check_param("w_coll", self.w_coll, lo=0.0, lo_open=True)
+        _check_collision(self)
         check_param("kappa", self.kappa, lo=0.0)
         check_fis_params(self.d_cl, self.e_cl, self.eps, self.n_y, self.completion)
-        _check_common(self)
-        check_choice("risk", self.risk, RISK_FORMS)
         check_choice("colregs", self.colregs, COLREGS_FORMS)
 
     @property
