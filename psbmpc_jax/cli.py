@@ -14,6 +14,10 @@ import time
 from .argtypes import nonneg_int, odd_int, positive_int, runs_int, seed_int
 from .cache import enable_compilation_cache
 
+#: ``psbmpc-jax run --method`` choices (the same as psbmpc_jax.scenario.METHODS; kept here so that building the
+#: parser imports nothing heavy).
+METHODS = ("psbmpc", "psbmpc_refine", "smooth_sbmpc", "sbmpc_init")
+
 DESCRIPTION = """\
 PSB-MPC ship collision avoidance in JAX.
 
@@ -144,6 +148,11 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("scenarios", nargs="*", help="built-in scenario names or patterns (see --list), or YAML paths")
     p.add_argument("--list", action="store_true",
                    help="list the built-in scenarios (name, description, file) and exit")
+    p.add_argument("--method", choices=METHODS, default=None,
+                   help="the own-ship's controller, overriding the file's mpc.method: psbmpc (grid search), "
+                        "psbmpc_refine (grid search + gradient refinement), smooth_sbmpc (Smooth-SBMPC, seed 000), "
+                        "sbmpc_init (its initialisation stage alone: the original SB-MPC). The results go to "
+                        "OUT/SCENARIO_METHOD, so methods can be compared side by side")
     p.add_argument("--runs", type=runs_int, default=None, help="Monte Carlo runs (default: the file's)")
     p.add_argument("--seed", type=seed_int, default=None,
                    help="base seed >= 0 (default: the file's); also seeds the mc/ce sample table")
@@ -260,6 +269,11 @@ def _missing_file_hint(item: str, names) -> str:
     return _did_you_mean(p.stem, names)
 
 
+def output_folder(name: str, method: str | None) -> str:
+    """The scenario's folder under ``--out``: its name, with ``_<method>`` appended when ``--method`` is given."""
+    return name if method is None else f"{name}_{method}"
+
+
 def _verdict(s: dict) -> str:
     bad = [(s["collisions"], "own-ship collision"), (s["groundings"], "own-ship grounding"),
            (s["pair_collision_runs"], "collision between other ships"),
@@ -296,7 +310,7 @@ def run_scenarios(args, parser) -> int:
     scenarios = []
     for item in selected:   # every file is checked before the first simulation starts
         try:
-            scenarios.append(load_scenario(item))
+            scenarios.append(load_scenario(item, method=args.method))
         except FileNotFoundError as exc:
             parser.error(f"{exc}{_missing_file_hint(item, names)}")
         except (ValueError, OSError) as exc:
@@ -332,7 +346,7 @@ def run_scenarios(args, parser) -> int:
         key = jax.random.key(seed) if scenario.mpc.config.estimator != "quadrature" else None
         result = simulate(scenario, runs=args.runs, seed=args.seed, batch=args.batch, progress=not args.quiet,
                           key=key)
-        out = pathlib.Path(args.out) / scenario.name
+        out = pathlib.Path(args.out) / output_folder(scenario.name, args.method)
         write_outputs(result, out, figures=not args.no_figures, plot_runs=plot_runs[scenario.name],
                       animate=args.animate, trajectories=args.save_trajectories)
         s = result.summary
@@ -343,7 +357,8 @@ def run_scenarios(args, parser) -> int:
         closest = ", ".join(f"{tg['name']} {tg['min_distance_m']['min']:.1f} m" for tg in s["targets"]
                             if tg["min_distance_m"]["min"] is not None)
         land = s["min_distance_land_m"]["min"]
-        print(f"{scenario.name}: {s['runs']} runs in {time.perf_counter() - t0:.0f} s: {verdict}; "
+        print(f"{scenario.name}: {s['runs']} runs in {time.perf_counter() - t0:.0f} s (method "
+              f"{s['method'] or 'none'}): {verdict}; "
               f"closest approach {closest or 'n/a'}" + (f", to land {land:.1f} m" if land is not None else "")
               + f"; {s['mpc_solves_total']} MPC solves; results in {out}{os.sep}")
     index = write_index(args.out)

@@ -12,6 +12,7 @@ problem in a file raises ``ValueError`` naming the key and what is allowed; noth
 from __future__ import annotations
 
 import copy
+import dataclasses
 import difflib
 import math
 import numbers
@@ -35,6 +36,13 @@ from .params import Params, PlannerConfig, validate_params
 from .situation import MAX_N_PS
 
 COLAV_MODES = ("none", "psbmpc")
+#: Own-ship controllers (``mpc.method``): plain PSB-MPC, PSB-MPC grid search + gradient refinement, Smooth-SBMPC
+#: (seed 000) and its initialisation stage alone (the paper's "original SB-MPC", Sim 01).
+METHODS = ("psbmpc", "psbmpc_refine", "smooth_sbmpc", "sbmpc_init")
+#: The methods of seed 000 (their own model and tuning; the PSB-MPC preset only supplies defaults).
+SMOOTH_METHODS = ("smooth_sbmpc", "sbmpc_init")
+#: The preset a smooth-method file without ``mpc.preset`` gets its defaults from (5 m river vessels).
+SMOOTH_DEFAULT_PRESET = "nidelva"
 
 
 @dataclass(frozen=True)
@@ -54,7 +62,12 @@ class ShipSpec:
         length, width: hull size [m].
         T_chi, T_U: autopilot time constants of the true motion [s].
         lookahead, R_a: LOS lookahead distance and waypoint acceptance radius [m].
-        colav: ``"none"`` (follows its route) or ``"psbmpc"`` (runs its own PSB-MPC).
+        colav: ``"none"`` (follows its route) or ``"psbmpc"`` (runs collision avoidance: the own-ship the
+            controller of ``mpc.method``, a target plain PSB-MPC).
+        allow_route_over_land: the own-ship's route may cross land on purpose (its controller must avoid it;
+            the loader then warns about such legs instead of refusing them).  Targets: always False.
+
+    A target with ``length == width == 0`` is a point object (seed 000); the own-ship has a hull.
     """
 
     name: str
@@ -71,6 +84,12 @@ class ShipSpec:
     lookahead: float = 66.0
     R_a: float = 5.0
     colav: str = "none"
+    allow_route_over_land: bool = False
+
+    @property
+    def is_point(self) -> bool:
+        """A point object (no hull: ``length_m: 0`` and ``width_m: 0``)."""
+        return self.length == 0.0 and self.width == 0.0
 
 
 @dataclass(frozen=True)
@@ -97,14 +116,85 @@ class SensorSpec:
 
 
 @dataclass(frozen=True)
-class MPCSpec:
-    """The PSB-MPC tuning every psbmpc ship uses.
+class SmoothSpec:
+    """``mpc.smooth``: Smooth-SBMPC's horizons and corridor (seed 000; defaults SPEC_SEEDS §1.8, the values of
+    :class:`psbmpc_jax.smooth.init_stage.SmoothSettings`).  Seconds and metres.
 
     Attributes:
-        preset: name in :data:`psbmpc_jax.presets.PRESETS`.
+        T_init, T_mpc: horizons of the initialisation stage and of the DOCP (T_init > T_mpc, multiples of dt).
+        dt: T_s, the discretisation step of both stages.
+        corridor_half_width: Δd.  domain_radius: r_dom, the ship-domain radius (N_TP and the corridor buffer).
+        k_ntp: grounding-penalty weight per lost trajectory point.
+        terminal: ``"full"``, ``"position"`` or ``"soft"`` terminal condition of the DOCP.
+        n_starts: starts of the DOCP solve (multi-start).
+    """
+
+    T_init: float = 60.0
+    T_mpc: float = 20.0
+    dt: float = 1.0
+    corridor_half_width: float = 20.0
+    domain_radius: float = 4.0
+    k_ntp: float = 1.0
+    terminal: str = "full"
+    n_starts: int = 4
+
+
+@dataclass(frozen=True)
+class FisSpec:
+    """``mpc.fis``: the fuzzy COLREGS inference of seed 000 (d_cl, e_cl [m], smooth-max ε, output grid n_y,
+    rule-table completion ``"default_false"`` or ``"literal"``)."""
+
+    d_cl: float = 40.0
+    e_cl: float = 5.0
+    eps: float = 1e-6
+    n_y: int = 201
+    completion: str = "default_false"
+
+
+@dataclass(frozen=True)
+class SolverSpec:
+    """``mpc.solver``: overrides of the gradient solver of the smooth DOCP and of the PSB-MPC refinement
+    (:class:`psbmpc_jax.nlp.SolverSettings`: outer / inner iterations, feasibility tolerance, inner method).
+    None: the method's own default (the refinement's is deliberately cheap, ``psbmpc_jax.refine.DEFAULT_SOLVER``)."""
+
+    max_outer: int | None = None
+    max_inner: int | None = None
+    tol: float | None = None
+    method: str | None = None
+
+    def given(self) -> dict:
+        """The fields the file sets (SolverSettings field name -> value)."""
+        return {k: v for k, v in vars(self).items() if v is not None}
+
+
+@dataclass(frozen=True)
+class RefineSpec:
+    """``mpc.refine``: the gradient refinement after the PSB-MPC grid search (``psbmpc_refine``): starts,
+    horizon [s] (None: the PSB-MPC horizon ``config.T``) and the COLREGS term (``"fis"`` or ``"none"``);
+    ``fis_e_cl`` / ``fis_n_y``: ``mpc.fis.e_cl_m`` / ``n_y`` when the file gives them (None: the refinement's
+    own defaults)."""
+
+    n_starts: int = 4
+    horizon: float | None = None
+    colregs: str = "fis"
+    fis_e_cl: float | None = None
+    fis_n_y: int | None = None
+
+
+@dataclass(frozen=True)
+class MPCSpec:
+    """The own-ship's controller and the PSB-MPC tuning every psbmpc ship uses.
+
+    Attributes:
+        preset: name in :data:`psbmpc_jax.presets.PRESETS` (for the smooth methods optional in the file:
+            :data:`SMOOTH_DEFAULT_PRESET`, used only for defaults and for targets that run PSB-MPC).
         config, params, behaviours: the preset with the file's overrides applied.
         n_ps: prediction scenarios per obstacle (odd).
         period: MPC update period [s] (a multiple of the simulation step).
+        method: the own-ship's controller, one of :data:`METHODS` (targets with ``colav: psbmpc`` always run
+            plain PSB-MPC).
+        smooth, fis, solver, refine: the settings of the other methods (defaults when not in the file; each
+            is used only by the methods it belongs to).
     """
 
     preset: str
@@ -113,6 +203,11 @@ class MPCSpec:
     behaviours: np.ndarray
     n_ps: int = 5
     period: float = 5.0
+    method: str = "psbmpc"
+    smooth: SmoothSpec = field(default_factory=SmoothSpec)
+    fis: FisSpec = field(default_factory=FisSpec)
+    solver: SolverSpec = field(default_factory=SolverSpec)
+    refine: RefineSpec = field(default_factory=RefineSpec)
 
 
 @dataclass(frozen=True)
@@ -159,7 +254,8 @@ class Scenario:
 
 # ====================================================================================================== loading
 __all__ = [
-    "ShipSpec", "SensorSpec", "MPCSpec", "Scenario", "COLAV_MODES", "KNOT", "SCENARIO_DIR",
+    "ShipSpec", "SensorSpec", "MPCSpec", "SmoothSpec", "FisSpec", "SolverSpec", "RefineSpec", "Scenario",
+    "COLAV_MODES", "METHODS", "SMOOTH_METHODS", "KNOT", "SCENARIO_DIR",
     "scenario_from_dict", "load_scenario", "builtin_scenarios", "estimator_key",
 ]
 
@@ -181,7 +277,22 @@ _TOP_KEYS = ("name", "description", "simulation", "monte_carlo", "collision_dist
 _TOP_REQUIRED = ("name", "simulation", "mpc", "own_ship")
 _SIM_KEYS = ("dt_s", "duration_s")
 _MC_KEYS = ("runs", "seed")
-_MPC_KEYS = ("preset", "update_period_s", "n_ps", "config", "params", "speed_factors", "course_offsets_deg")
+_MPC_KEYS = ("preset", "update_period_s", "n_ps", "config", "params", "speed_factors", "course_offsets_deg",
+             "method", "smooth", "fis", "solver", "refine")
+_SMOOTH_KEYS = ("T_init_s", "T_mpc_s", "dt_s", "corridor_half_width_m", "domain_radius_m", "k_ntp", "terminal",
+                "n_starts")
+_FIS_KEYS = ("d_cl_m", "e_cl_m", "eps", "n_y", "completion")
+_SOLVER_KEYS = ("max_outer", "max_inner", "tol", "method")
+_REFINE_KEYS = ("n_starts", "horizon_s", "colregs")
+_TERMINALS = ("full", "position", "soft")
+_COMPLETIONS = ("default_false", "literal")
+_SOLVER_METHODS = ("lbfgs", "adam")
+_REFINE_COLREGS = ("fis", "none")
+#: Upper limits of the method settings (plausibility, like the rest of the file).
+MAX_METHOD_STEPS = 10_000      # T_init_s / dt_s, T_mpc_s / dt_s
+MAX_STARTS = 64
+MAX_SOLVER_ITERATIONS = 100_000
+MAX_FIS_NY = 100_001
 _SENSOR_KEYS = ("position_std_m", "period_s", "filter_R_scale", "sigma_a_mps2", "U_max_mps", "U_max_kn",
                 "colav_target_cov")
 _COV_KEYS = ("position_var_m2", "velocity_var_m2s2")
@@ -190,7 +301,7 @@ _ORIGIN_KEYS = ("east", "north", "zone")
 _LATLON_ORIGIN_KEYS = ("lat", "lon")
 _SHIP_KEYS = ("name", "position_m", "position_utm", "position_latlon", "course_deg", "speed_mps", "speed_kn",
               "nominal_speed_mps", "nominal_speed_kn", "waypoints_m", "waypoints_utm", "waypoints_latlon", "speed_plan", "length_m", "width_m", "T_chi_s",
-              "T_U_s", "lookahead_m", "R_a_m", "colav")
+              "T_U_s", "lookahead_m", "R_a_m", "colav", "allow_route_over_land")
 _PLAN_KEYS = ("t_s", "speed_mps", "speed_kn")
 
 
@@ -389,12 +500,25 @@ def _mpc(d, dt: float) -> MPCSpec:
     from .presets import PRESETS, build_mpc
 
     d = _mapping(d, "mpc")
-    _check_keys(d, _MPC_KEYS, "mpc", required=("preset", "update_period_s"))
-    preset = d["preset"]
+    _check_keys(d, _MPC_KEYS, "mpc", required=("update_period_s",))
+    method = d.get("method", "psbmpc")
+    if not isinstance(method, str) or method not in METHODS:
+        raise ValueError(f"mpc.method must be one of {', '.join(METHODS)}, got {show(method)}")
+    if "preset" not in d and method not in SMOOTH_METHODS:
+        raise ValueError(f"mpc: missing required key 'preset' (required for mpc.method {method}; optional only "
+                         f"for {' / '.join(SMOOTH_METHODS)}, which then take their defaults from "
+                         f"{SMOOTH_DEFAULT_PRESET!r})")
+    preset = d.get("preset", SMOOTH_DEFAULT_PRESET)
     if not isinstance(preset, str) or preset not in PRESETS:
         raise ValueError(f"mpc.preset must be one of {sorted(PRESETS)}, got {preset!r}")
     period = _number(d["update_period_s"], "mpc.update_period_s", gt=0)
     multiple_of(period, dt, "mpc.update_period_s", "simulation.dt_s")
+    smooth = _smooth_spec(d.get("smooth", {}) or {})
+    fis = _fis_spec(d.get("fis", {}) or {})
+    solver = _solver_spec(d.get("solver", {}) or {})
+    if method in SMOOTH_METHODS:
+        multiple_of(period, smooth.dt, "mpc.update_period_s",
+                    "mpc.smooth.dt_s" if "dt_s" in (d.get("smooth") or {}) else "mpc.smooth.dt_s (default)")
     n_ps = d.get("n_ps", PRESETS[preset].n_ps)
     if isinstance(n_ps, bool) or not isinstance(n_ps, numbers.Integral) or n_ps < 1 or n_ps % 2 == 0:
         raise ValueError(f"mpc.n_ps must be an odd integer >= 1, got {n_ps!r}"[:300])
@@ -441,8 +565,100 @@ def _mpc(d, dt: float) -> MPCSpec:
         raise ValueError(f"mpc ({preset!r} with the file's overrides): {exc}") from None
     if cfg.dtype == "float64":
         _enable_x64()
+    refine = _refine_spec(d.get("refine", {}) or {}, cfg)
+    given = d.get("fis") or {}
+    refine = dataclasses.replace(refine, fis_e_cl=fis.e_cl if "e_cl_m" in given else None,
+                                 fis_n_y=fis.n_y if "n_y" in given else None)
     return MPCSpec(preset=preset, config=cfg, params=prm, behaviours=np.asarray(behaviours, dtype=float),
-                   n_ps=int(n_ps), period=period)
+                   n_ps=int(n_ps), period=period, method=method, smooth=smooth, fis=fis, solver=solver,
+                   refine=refine)
+
+
+def _choice(v, allowed, where: str) -> str:
+    if not isinstance(v, str) or v not in allowed:
+        raise ValueError(f"{where} must be one of {', '.join(allowed)}, got {show(v)}")
+    return v
+
+
+def _smooth_spec(d) -> SmoothSpec:
+    w = "mpc.smooth"
+    d = _mapping(d, w)
+    _check_keys(d, _SMOOTH_KEYS, w)
+    kw = {}
+    for key, name in (("T_init_s", "T_init"), ("T_mpc_s", "T_mpc"), ("dt_s", "dt"),
+                      ("corridor_half_width_m", "corridor_half_width")):
+        if key in d:
+            kw[name] = _number(d[key], f"{w}.{key}", gt=0)
+    if "domain_radius_m" in d:
+        kw["domain_radius"] = _number(d["domain_radius_m"], f"{w}.domain_radius_m", ge=0)
+    if "k_ntp" in d:
+        kw["k_ntp"] = _number(d["k_ntp"], f"{w}.k_ntp", ge=0)
+    if "terminal" in d:
+        kw["terminal"] = _choice(d["terminal"], _TERMINALS, f"{w}.terminal")
+    if "n_starts" in d:
+        kw["n_starts"] = integer(d["n_starts"], f"{w}.n_starts", ge=1, le=MAX_STARTS)
+    spec = SmoothSpec(**kw)
+    for key, name in (("T_init_s", "T_init"), ("T_mpc_s", "T_mpc")):
+        given = f"{w}.{key}" + ("" if key in d else " (default)")
+        n = multiple_of(getattr(spec, name), spec.dt, given, f"{w}.dt_s" + ("" if "dt_s" in d else " (default)"))
+        if n > MAX_METHOD_STEPS:
+            raise ValueError(f"{given} / {w}.dt_s = {n} steps; at most {MAX_METHOD_STEPS} allowed")
+    if not spec.T_init > spec.T_mpc:
+        raise ValueError(f"{w}.T_init_s ({spec.T_init:g}) must be > {w}.T_mpc_s ({spec.T_mpc:g}): the DOCP's "
+                         f"terminal state is taken from the initialisation stage's trajectory")
+    return spec
+
+
+def _fis_spec(d) -> FisSpec:
+    w = "mpc.fis"
+    d = _mapping(d, w)
+    _check_keys(d, _FIS_KEYS, w)
+    kw = {}
+    if "d_cl_m" in d:
+        kw["d_cl"] = _number(d["d_cl_m"], f"{w}.d_cl_m", gt=0)
+    if "e_cl_m" in d:
+        kw["e_cl"] = _number(d["e_cl_m"], f"{w}.e_cl_m", gt=0)
+    if "eps" in d:
+        kw["eps"] = _number(d["eps"], f"{w}.eps", gt=0)
+    if "n_y" in d:
+        kw["n_y"] = integer(d["n_y"], f"{w}.n_y", ge=2, le=MAX_FIS_NY)
+    if "completion" in d:
+        kw["completion"] = _choice(d["completion"], _COMPLETIONS, f"{w}.completion")
+    return FisSpec(**kw)
+
+
+def _solver_spec(d) -> SolverSpec:
+    w = "mpc.solver"
+    d = _mapping(d, w)
+    _check_keys(d, _SOLVER_KEYS, w)
+    kw = {}
+    for key in ("max_outer", "max_inner"):
+        if key in d:
+            kw[key] = integer(d[key], f"{w}.{key}", ge=1, le=MAX_SOLVER_ITERATIONS)
+    if "tol" in d:
+        kw["tol"] = _number(d["tol"], f"{w}.tol", gt=0)
+    if "method" in d:
+        kw["method"] = _choice(d["method"], _SOLVER_METHODS, f"{w}.method")
+    return SolverSpec(**kw)
+
+
+def _refine_spec(d, config: PlannerConfig) -> RefineSpec:
+    w = "mpc.refine"
+    d = _mapping(d, w)
+    _check_keys(d, _REFINE_KEYS, w)
+    kw = {}
+    if "n_starts" in d:
+        kw["n_starts"] = integer(d["n_starts"], f"{w}.n_starts", ge=1, le=MAX_STARTS)
+    if "horizon_s" in d:
+        h = _number(d["horizon_s"], f"{w}.horizon_s", gt=0)
+        if h > config.T * (1 + 1e-9):
+            raise ValueError(f"{w}.horizon_s ({h:g}) must be <= the PSB-MPC horizon mpc.config T ({config.T:g}); "
+                             f"leave it out for the whole horizon")
+        multiple_of(h, config.dt, f"{w}.horizon_s", "the PSB-MPC step mpc.config dt")
+        kw["horizon"] = h
+    if "colregs" in d:
+        kw["colregs"] = _choice(d["colregs"], _REFINE_COLREGS, f"{w}.colregs")
+    return RefineSpec(**kw)
 
 
 def _enable_x64() -> None:
@@ -690,6 +906,16 @@ def _ship(d, where: str, *, own: bool, ctx: dict) -> ShipSpec:
     if colav == "psbmpc" and not U_d > 0:
         raise ValueError(f"{where}: a ship with colav psbmpc needs a nominal speed > 0 (nominal_speed_mps, "
                          f"default the initial speed), got {U_d:g} m/s")
+    over_land = d.get("allow_route_over_land", False)
+    if not isinstance(over_land, bool):
+        raise ValueError(f"{where}.allow_route_over_land must be true or false, got {show(over_land)}")
+    if over_land and not own:
+        raise ValueError(f"{where}.allow_route_over_land: allowed only for the own-ship (its controller avoids the "
+                         f"land; a target follows its route and would sail through it)")
+    method = ctx.get("method", "psbmpc")
+    if own and colav == "psbmpc" and method in SMOOTH_METHODS and "speed_plan" in d:
+        raise ValueError(f"{where}.speed_plan: not supported with mpc.method {method} (the Smooth-SBMPC model has "
+                         f"one nominal speed, nominal_speed_mps); leave it out or use another method")
 
     plan = None
     if "speed_plan" in d:
@@ -744,22 +970,32 @@ def _ship(d, where: str, *, own: bool, ctx: dict) -> ShipSpec:
     def opt(key, default, **bounds):
         return _number(d[key], f"{where}.{key}", **bounds) if key in d else float(default)
 
+    def size(key, default, le):
+        if own or key not in d:       # the own-ship has a hull; a target may be a point object (0 and 0)
+            return opt(key, default, gt=0, le=le)
+        x = _number(d[key], f"{where}.{key}", ge=0, le=le)
+        return x
+
     spec = ShipSpec(
         name=name, position=pos, course=course, speed=speed, waypoints=np.asarray(wps, dtype=float), U_d=U_d,
         speed_plan=plan,
-        length=opt("length_m", 5.0, gt=0, le=limits.MAX_SHIP_LENGTH_M),
-        width=opt("width_m", 3.0, gt=0, le=limits.MAX_SHIP_WIDTH_M),
+        length=size("length_m", 5.0, limits.MAX_SHIP_LENGTH_M),
+        width=size("width_m", 3.0, limits.MAX_SHIP_WIDTH_M),
         T_chi=opt("T_chi_s", getattr(prm, pre + "T_chi"), gt=0), T_U=opt("T_U_s", getattr(prm, pre + "T_U"), gt=0),
         lookahead=opt("lookahead_m", getattr(prm, pre + "lookahead"), gt=0),
         R_a=opt("R_a_m", getattr(prm, pre + "R_a"), ge=0),
-        colav=colav,
+        colav=colav, allow_route_over_land=over_land,
     )
+    if not own and (spec.length == 0.0) != (spec.width == 0.0):
+        raise ValueError(f"{where}: length_m and width_m must both be 0 (a point object) or both > 0, got "
+                         f"{spec.length:g} and {spec.width:g}")
     ctx.setdefault("default_routes", []).append(wkey is None)
     return spec
 
 
 # ---------------------------------------------------------------------------------------------- public API
-def scenario_from_dict(data: dict, base_dir=None, source: str | None = None, *, land_checks: str = "warn") -> Scenario:
+def scenario_from_dict(data: dict, base_dir=None, source: str | None = None, *, land_checks: str = "warn",
+                       method: str | None = None) -> Scenario:
     """Validate a scenario mapping (the parsed YAML, schema in ``docs/scenarios.md``) and build a
     :class:`Scenario` in SI units, radians and the local NED frame.
 
@@ -772,6 +1008,8 @@ def scenario_from_dict(data: dict, base_dir=None, source: str | None = None, *, 
             leg through land, two ships starting closer than the collision distance): ``"error"`` raises
             ``ValueError`` (what :func:`load_scenario` does), ``"warn"`` (default here) issues a
             :class:`~psbmpc_jax.scenario_checks.ScenarioWarning` per problem, ``"off"`` skips the checks.
+        method: overrides ``mpc.method`` (one of :data:`METHODS`; ``psbmpc-jax run --method``) before the
+            mapping is validated, so the file is checked as if it said so.
 
     Raises:
         ValueError: unknown or missing keys, wrong types, non-finite numbers, values out of range, unit
@@ -783,6 +1021,11 @@ def scenario_from_dict(data: dict, base_dir=None, source: str | None = None, *, 
         raise ValueError(f"land_checks must be 'error', 'warn' or 'off', got {land_checks!r}")
     data = copy.deepcopy(_mapping(data, "the scenario"))
     _check_keys(data, _TOP_KEYS, "the scenario (top level)", required=_TOP_REQUIRED)
+    if method is not None:
+        if not isinstance(method, str) or method not in METHODS:
+            raise ValueError(f"method (the override of mpc.method) must be one of {', '.join(METHODS)}, got "
+                             f"{show(method)}")
+        data["mpc"] = {**_mapping(data["mpc"], "mpc"), "method": method}
     name = _string(data["name"], "name")
     description = data.get("description", "")
     if not isinstance(description, str):
@@ -819,7 +1062,7 @@ def scenario_from_dict(data: dict, base_dir=None, source: str | None = None, *, 
                          f"{limits.MAX_SIM_MEMORY_BYTES / 1024 ** 3:.0f} GiB allowed -- fewer runs, a shorter "
                          f"duration_s or a larger dt_s")
 
-    ctx = dict(chart=chart, duration=duration, params=mpc.params, origin_latlon=origin_ll)
+    ctx = dict(chart=chart, duration=duration, params=mpc.params, origin_latlon=origin_ll, method=mpc.method)
     own = _ship(data["own_ship"], "own_ship", own=True, ctx=ctx)
     targets = tuple(_ship(t, f"targets[{i}]", own=False, ctx=ctx) for i, t in enumerate(tl))
     seen = {own.name: "own_ship"}
@@ -851,6 +1094,10 @@ def scenario_from_dict(data: dict, base_dir=None, source: str | None = None, *, 
             return
         errors, warns = limits.land_issues((own,) + targets, roles, [variant], duration=duration,
                                            default_routes=ctx.get("default_routes", ()), ship_pairs=first)
+        if own.allow_route_over_land:   # the file says so: the own-ship's legs over land are warned about
+            leg = f"{roles[0]}: route leg "
+            warns = warns + [m + " (allowed by own_ship.allow_route_over_land)" for m in errors if m.startswith(leg)]
+            errors = [m for m in errors if not m.startswith(leg)]
         fresh = [m for m in errors + warns if not any(m.startswith(r) for r in reported)]
         errors, warns = [m for m in errors if m in fresh], [m for m in warns if m in fresh]
         reported.update(r for r in roles for m in errors + warns if m.startswith(r))
@@ -914,13 +1161,14 @@ def _builtin_path(name: str) -> pathlib.Path:
                      f"(or give the path of a .yaml / .yml file)")
 
 
-def load_scenario(path_or_name, *, land_checks: str = "error") -> Scenario:
+def load_scenario(path_or_name, *, land_checks: str = "error", method: str | None = None) -> Scenario:
     """Load and validate a scenario: a path to a ``.yaml`` / ``.yml`` file, or the name of a built-in scenario
     (:func:`builtin_scenarios`, e.g. ``"head_on"``, ``"imazu_01"``).
 
     Everything is checked before anything is simulated or compiled, the land geometry included
     (``land_checks="error"``: a ship starting on land, a waypoint or route leg on or through land, two ships
-    starting closer than the collision distance raise; see :func:`scenario_from_dict`).
+    starting closer than the collision distance raise; see :func:`scenario_from_dict`).  ``method`` overrides
+    the file's ``mpc.method`` (validated as if the file said so).
 
     Raises:
         ValueError: unknown built-in name (the message lists them), invalid YAML or an invalid scenario.
@@ -949,6 +1197,6 @@ def load_scenario(path_or_name, *, land_checks: str = "error") -> Scenario:
         raise ValueError(f"{where}: a scenario file must hold a mapping at the top level, got "
                          f"{type(data).__name__}")
     try:
-        return scenario_from_dict(data, base_dir=path.parent, source=where, land_checks=land_checks)
+        return scenario_from_dict(data, base_dir=path.parent, source=where, land_checks=land_checks, method=method)
     except ValueError as exc:
         raise ValueError(f"{where}: {exc}") from None

@@ -199,7 +199,10 @@ ERRORS = [
     ("std_zero", _top("sensor", {"position_std_m": 0}), r"sensor.position_std_m must be > 0"),
     ("cov_negative", _top("sensor", {"colav_target_cov": {"position_var_m2": -1}}),
      r"sensor.colav_target_cov.position_var_m2 must be > 0"),
-    ("length_zero", _set(tgt, "length_m", 0), r"targets\[0\].length_m must be > 0, got 0"),
+    # a target may be a point object (length_m and width_m both 0, tests/test_sim_methods.py); not half of one
+    ("length_zero", _set(tgt, "length_m", 0), r"targets\[0\]: length_m and width_m must both be 0 \(a point "
+                                               r"object\) or both > 0, got 0 and 3"),
+    ("own_length_zero", _set(lambda d: d["own_ship"], "length_m", 0), r"own_ship.length_m must be > 0, got 0"),
     ("R_a_negative", _set(own, "R_a_m", -1), r"own_ship.R_a_m must be >= 0"),
     ("name_empty", _top("name", ""), r"name must be a non-empty string"),
     ("description_type", _top("description", 3), r"description must be a string, got 3"),

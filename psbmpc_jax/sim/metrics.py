@@ -45,6 +45,7 @@ __all__ = [
     "distance_to_land",
     "cross_track_deviation",
     "course_rate",
+    "voyage_metrics",
     "run_metrics",
     "aggregate",
 ]
@@ -412,6 +413,43 @@ def course_rate(t, chi):
     return wrap_angle_host(np.diff(chi)) / np.diff(t)
 
 
+def voyage_metrics(t, own, route, arrival_radius=None) -> dict:
+    """The voyage of the own-ship (seed 000, Table X): from the start to the first sample within
+    ``arrival_radius`` of the last waypoint, or the whole run when it never gets there.
+
+    Returns ``arrived`` (bool), ``voyage_time_s`` (time of that first sample minus ``t[0]``; None when it never
+    arrives or ``arrival_radius`` is None), and over the voyage: ``path_length_m`` (sum of the distances between
+    consecutive positions), ``course_min_deg`` / ``course_max_deg`` (the extremes of the continuous course:
+    unwrapped, in degrees, shifted so that the first course lies in [0, 360) -- a course that crosses north
+    continues below 0 or above 360, so 350 -> 10 deg reads 350 .. 370), ``speed_min_mps`` / ``speed_max_mps``
+    and ``voyage_mean_abs_course_rate_deg_s`` (mean |Δχ|/Δt, None for a single sample)."""
+    t = _check_t(t)
+    own = _check_traj(own, "own", t.size)
+    route = waypoints(route, "route", 2)
+    k_end = t.size - 1
+    arrived = False
+    if arrival_radius is not None:
+        arrival_radius = positive(arrival_radius, "arrival_radius", allow_zero=True)
+        d = np.hypot(own[:, 0] - route[-1, 0], own[:, 1] - route[-1, 1])
+        hit = np.flatnonzero(d <= arrival_radius)
+        if hit.size:
+            k_end, arrived = int(hit[0]), True
+    v = own[: k_end + 1]
+    course = np.degrees(np.unwrap(v[:, 2]))
+    course = course - 360.0 * np.floor(course[0] / 360.0)
+    rate = course_rate(t[: k_end + 1], v[:, 2]) if k_end > 0 else np.zeros(0)
+    return {
+        "arrived": arrived,
+        "voyage_time_s": float(t[k_end] - t[0]) if arrived else None,
+        "path_length_m": float(np.sum(np.hypot(*np.diff(v[:, :2], axis=0).T))) if k_end > 0 else 0.0,
+        "course_min_deg": float(course.min()),
+        "course_max_deg": float(course.max()),
+        "speed_min_mps": float(v[:, 3].min()),
+        "speed_max_mps": float(v[:, 3].max()),
+        "voyage_mean_abs_course_rate_deg_s": float(np.degrees(np.abs(rate)).mean()) if rate.size else None,
+    }
+
+
 # ------------------------------------------------------------------------------------------------ per run
 def _stats(values) -> dict:
     v = np.asarray([x for x in values if x is not None], dtype=float)
@@ -422,7 +460,7 @@ def _stats(values) -> dict:
 
 
 def run_metrics(t, own, targets, route, polygons, *, d_collision, ground_clearance, solve_times=None,
-                target_names=None, classify_range=None):
+                target_names=None, classify_range=None, arrival_radius=None):
     """Metrics of one closed-loop run, as a JSON-serialisable dict.
 
     Args:
@@ -435,13 +473,18 @@ def run_metrics(t, own, targets, route, polygons, *, d_collision, ground_clearan
         target_names: optional n names (default ``"target_<i>"``).
         classify_range: [m] range at which each encounter is classified (:func:`encounter_type`); None
             classifies at ``t[0]`` (the initial geometry).
+        arrival_radius: [m] >= 0, the voyage ends at the first sample this close to the last waypoint (the
+            simulator passes the own-ship's acceptance radius R_a); None: the voyage is the whole run and
+            ``voyage_time_s`` is None.
 
     Returns:
         ``{"targets": [{name, min_distance_m, t_cpa_s, collision, encounter, t_classified_s, compliant,
         compliance: {...}}], "collision", "n_targets", "duration_s", "min_distance_land_m", "grounding",
         "path_deviation_mean_m", "path_deviation_max_m", "mean_abs_course_rate_deg_s", "solve_time_mean_s",
-        "solve_time_max_s", "solve_time_p95_s", "n_solves"}``; None where a quantity does not exist (no land,
-        no solves, a single sample).
+        "solve_time_max_s", "solve_time_p95_s", "n_solves"}`` and the :func:`voyage_metrics` (``arrived``,
+        ``voyage_time_s``, ``path_length_m``, ``course_min_deg``, ``course_max_deg``, ``speed_min_mps``,
+        ``speed_max_mps``, ``voyage_mean_abs_course_rate_deg_s``); None where a quantity does not exist (no
+        land, no solves, a single sample, no arrival).
     """
     t = _check_t(t)
     K = t.size
@@ -500,6 +543,7 @@ def run_metrics(t, own, targets, route, polygons, *, d_collision, ground_clearan
         "solve_time_max_s": float(st.max()) if st.size else None,
         "solve_time_p95_s": float(np.percentile(st, 95)) if st.size else None,
         "n_solves": int(st.size),
+        **voyage_metrics(t, own, route, arrival_radius),
     }
 
 
@@ -515,7 +559,10 @@ def aggregate(metrics) -> dict:
     ``compliance_rate`` (all targets), ``min_distance_land_m`` stats, ``path_deviation_mean_m`` (mean of run
     means), ``path_deviation_max_m`` (max of run maxima), ``mean_abs_course_rate_deg_s`` stats, and solve times
     (``solve_time_mean_s`` weighted by solves, ``solve_time_max_s``, ``solve_time_p95_s_max`` = the largest
-    per-run p95, ``n_solves`` total).
+    per-run p95, ``n_solves`` total); the voyage (:func:`voyage_metrics`): ``arrived_runs`` (runs that reached
+    the last waypoint), stats of ``voyage_time_s`` (over the runs that arrived), ``path_length_m``,
+    ``voyage_mean_abs_course_rate_deg_s``, ``speed_min_mps`` and ``speed_max_mps``, and ``course_min_deg`` /
+    ``course_max_deg`` / ``speed_min_mps`` / ``speed_max_mps`` stats (run dicts without them are skipped).
     """
     if isinstance(metrics, dict) or not isinstance(metrics, Sequence):
         raise ValueError("metrics must be a list of run_metrics dicts")
@@ -576,4 +623,8 @@ def aggregate(metrics) -> dict:
         "solve_time_max_s": float(max(maxima)) if maxima else None,
         "solve_time_p95_s_max": float(max(p95s)) if p95s else None,
         "n_solves": int(total),
+        "arrived_runs": int(sum(1 for m in metrics if m.get("arrived"))),
+        **{key: _stats(m.get(key) for m in metrics)
+           for key in ("voyage_time_s", "path_length_m", "course_min_deg", "course_max_deg", "speed_min_mps",
+                       "speed_max_mps", "voyage_mean_abs_course_rate_deg_s")},
     }

@@ -58,15 +58,29 @@ def scenario_info(sc) -> dict:
         "name": sc.name, "description": sc.description, "source": sc.source,
         "duration_s": sc.duration, "dt_s": sc.dt, "runs": sc.runs, "seed": sc.seed,
         "collision_distance_m": sc.d_collision,
-        "mpc": {"preset": sc.mpc.preset, "update_period_s": sc.mpc.period, "n_ps": sc.mpc.n_ps,
-                "n_cbs": int(len(sc.mpc.behaviours)), "config": vars(sc.mpc.config).copy(),
-                "params": p.as_dict()},
+        "mpc": {"method": sc.mpc.method, "preset": sc.mpc.preset, "update_period_s": sc.mpc.period,
+                "n_ps": sc.mpc.n_ps, "n_cbs": int(len(sc.mpc.behaviours)), "config": vars(sc.mpc.config).copy(),
+                "params": p.as_dict(), **method_settings(sc.mpc)},
         "sensor": vars(sc.sensor).copy(),
         "chart": sc.chart_info,
         "ships": [{"name": s.name, "colav": s.colav, "length_m": s.length, "width_m": s.width,
-                   "U_d_mps": s.U_d, "start_m": s.position, "course_deg": math.degrees(s.course)}
+                   "U_d_mps": s.U_d, "start_m": s.position, "course_deg": math.degrees(s.course),
+                   "T_chi_s": s.T_chi, "T_U_s": s.T_U, "lookahead_m": s.lookahead, "R_a_m": s.R_a}
                   for s in sc.ships],
     }
+
+
+def method_settings(mpc) -> dict:
+    """The settings of the own-ship's method beyond the PSB-MPC preset (empty for ``psbmpc``): ``smooth``,
+    ``fis`` and ``solver`` for the smooth methods, ``refine`` and ``solver`` for ``psbmpc_refine`` (``solver``:
+    the keys the file gives; the rest is the method's own default)."""
+    from dataclasses import asdict
+
+    if mpc.method in ("smooth_sbmpc", "sbmpc_init"):
+        return {"smooth": asdict(mpc.smooth), "fis": asdict(mpc.fis), "solver": mpc.solver.given()}
+    if mpc.method == "psbmpc_refine":
+        return {"refine": asdict(mpc.refine), "solver": mpc.solver.given()}
+    return {}
 
 
 def provenance() -> dict:
@@ -80,10 +94,15 @@ def _fmt(v, nd=1):
 
 def summary_markdown(result) -> str:
     sc, s = result.scenario, result.summary
+    m = sc.mpc
+    if m.method in ("smooth_sbmpc", "sbmpc_init"):
+        how = (f"own-ship method `{m.method}` (T_init {m.smooth.T_init:g} s, T_mpc {m.smooth.T_mpc:g} s, T_s "
+               f"{m.smooth.dt:g} s)")
+    else:
+        how = (f"own-ship method `{m.method}`, preset `{m.preset}`, {len(m.behaviours)} behaviours, n_ps {m.n_ps}")
     lines = [f"# {sc.name}: {s['runs']} closed-loop runs", "",
              sc.description or "", "",
-             f"- preset `{sc.mpc.preset}`, {len(sc.mpc.behaviours)} behaviours, n_ps {sc.mpc.n_ps}, MPC every "
-             f"{sc.mpc.period:g} s, simulation {sc.duration:g} s at dt {sc.dt:g} s, seed {sc.seed}",
+             f"- {how}, MPC every {m.period:g} s, simulation {sc.duration:g} s at dt {sc.dt:g} s, seed {sc.seed}",
              f"- collision distance {sc.d_collision:g} m (centre to centre); grounding: own-ship centre closer "
              f"to land than half its width",
              f"- **own-ship collisions: {s['collisions']} of {s['runs']} runs; groundings: {s['groundings']}**; "
@@ -113,6 +132,16 @@ def summary_markdown(result) -> str:
         lines += ["", f"Minimum own-ship distance to land over runs: {d['min']:.1f} m (median {d['median']:.1f} m)."]
     lines += ["", f"Mean path deviation {s['path_deviation_mean_m']:.1f} m; mean absolute course rate "
                   f"{s['mean_abs_course_rate_deg_s']['mean']:.3f} deg/s.", ""]
+    if "path_length_m" in s:
+        def rng(key, nd=1):
+            st = s[key]
+            return "—" if st["n"] == 0 else f"{st['mean']:.{nd}f} (min {st['min']:.{nd}f}, max {st['max']:.{nd}f})"
+
+        lines += [f"Voyage (start to the first time within R_a of the last waypoint; the whole run if never): "
+                  f"{s.get('arrived_runs', 0)} of {s['runs']} runs arrived; voyage time {rng('voyage_time_s')} s, "
+                  f"path length {rng('path_length_m')} m; course {_fmt(s['course_min_deg']['min'])}–"
+                  f"{_fmt(s['course_max_deg']['max'])} deg, speed {_fmt(s['speed_min_mps']['min'], 2)}–"
+                  f"{_fmt(s['speed_max_mps']['max'], 2)} m/s (extremes over runs).", ""]
     return "\n".join(lines)
 
 
@@ -375,7 +404,7 @@ def _load_csv(p: pathlib.Path) -> Trajectories:
 
 
 def write_index(out_dir) -> pathlib.Path:
-    """``index.md`` over every ``*/metrics.json`` under ``out_dir``: one row per scenario with its runs,
+    """``index.md`` over every ``*/metrics.json`` under ``out_dir``: one row per scenario with its method, runs,
     collisions, groundings, the closest approach to any target and to land, COLREGS compliance and the
     median amortised solve time."""
     out = pathlib.Path(out_dir)
@@ -388,9 +417,10 @@ def write_index(out_dir) -> pathlib.Path:
         n_ok, n_eval = s.get("n_compliant", 0), s.get("n_compliance_evaluated", 0)
         solve = s.get("solve_wall_s_amortised_median")
         rows.append(
-            f"| [{s['scenario']}]({path.parent.name}/summary.md) | {s['runs']} | {len(s['targets'])} | "
+            f"| [{s['scenario']}]({path.parent.name}/summary.md) | {s.get('method') or 'none'} | {s['runs']} | "
+            f"{len(s['targets'])} | "
             f"{s['collisions']} | {s['groundings']} | {s['pair_collision_runs']} | "
-            f"{min(tmin):.1f} | " + ("—" if land is None else f"{land:.1f}") + " | "
+            + (f"{min(tmin):.1f}" if tmin else "—") + " | " + ("—" if land is None else f"{land:.1f}") + " | "
             + (f"{n_ok}/{n_eval}" if n_eval else "n/a") + " | "
             + ("—" if solve is None else f"{1e3 * solve:.1f}") + f" | {doc.get('commit', '?')[:9]} |")
     text = "\n".join([
@@ -399,8 +429,8 @@ def write_index(out_dir) -> pathlib.Path:
         "own-ship runs with a centre distance below the collision distance; pair collisions: runs in which two "
         "ships of which one runs PSB-MPC collided; COLREGS: runs × targets whose encounter the own-ship's "
         "manoeuvre matched, of those with an obligation (see docs/simulation.md).", "",
-        "| scenario | runs | targets | collisions | groundings | pair collisions | closest approach [m] | "
+        "| scenario | method | runs | targets | collisions | groundings | pair collisions | closest approach [m] | "
         "closest to land [m] | COLREGS matched | solve [ms] | commit |",
-        "|---|---|---|---|---|---|---|---|---|---|---|", *rows, ""])
+        "|---|---|---|---|---|---|---|---|---|---|---|---|", *rows, ""])
     (out / "index.md").write_text(text)
     return out / "index.md"

@@ -13,8 +13,8 @@ import numpy as np
 from ..plots import land_patch, plot_candidates
 from ..situation import polygon_rings
 
-__all__ = ["SHIP_COLORS", "plot_map", "plot_distances", "plot_course_speed", "plot_monte_carlo", "write_figures",
-           "animate_run", "parse_runs"]
+__all__ = ["SHIP_COLORS", "plot_map", "plot_distances", "plot_course_speed", "plot_course_speed_compare",
+           "plot_monte_carlo", "write_figures", "animate_run", "parse_runs"]
 
 SHIP_COLORS = ("tab:red", "tab:green", "tab:blue", "tab:purple", "black", "tab:orange", "tab:brown", "tab:cyan")
 
@@ -27,6 +27,31 @@ def _ship_outline(n, e, chi, length, width, scale):
     north = n + body[:, 0] * c - body[:, 1] * s
     east = e + body[:, 0] * s + body[:, 1] * c
     return np.stack([east, north], axis=1)
+
+
+#: Half-size [m, before scaling] of the diamond a point target (length_m: 0) is drawn as.
+POINT_MARK_M = 1.0
+
+
+def _hull(ship, state, scale):
+    """The outline of ``ship`` at ``state`` (north, east, chi): its hull, or a diamond for a point target."""
+    if getattr(ship, "is_point", False):
+        r = POINT_MARK_M * scale
+        c, s = np.cos(state[2]), np.sin(state[2])
+        body = np.array([[r, 0.0], [0.0, r], [-r, 0.0], [0.0, -r]])                  # (forward, starboard)
+        return np.stack([state[1] + body[:, 0] * s + body[:, 1] * c, state[0] + body[:, 0] * c - body[:, 1] * s],
+                        axis=1)
+    return _ship_outline(state[0], state[1], state[2], ship.length, ship.width, scale)
+
+
+def _ship_label(ship, i: int, method) -> str:
+    """``name (own-ship) [method]`` / ``name [PSB-MPC]`` / ``name (point)``."""
+    text = ship.name + (" (own-ship)" if i == 0 else "")
+    if i == 0 and ship.colav != "none":
+        text += f" [{method or 'psbmpc'}]"
+    elif ship.colav == "psbmpc":
+        text += " [PSB-MPC]"
+    return text + (" (point)" if getattr(ship, "is_point", False) else "")
 
 
 def _draw_land(ax, polygons):
@@ -60,9 +85,9 @@ def plot_map(result, run: int = 0, ax=None, n_instants: int = 5, ship_scale: flo
     for i, ship in enumerate(sc.ships):
         col = SHIP_COLORS[i % len(SHIP_COLORS)]
         ax.plot(xy[i, :, 1], xy[i, :, 0], "-", color=col, lw=1.2, zorder=3,
-                label=f"{ship.name}{' (own-ship)' if i == 0 else ''}{' [PSB-MPC]' if ship.colav == 'psbmpc' else ''}")
+                label=_ship_label(ship, i, getattr(result, "method", None)))
         for n, k in enumerate(idx):
-            hull = _ship_outline(*states[i, k, :3], ship.length, ship.width, scale)
+            hull = _hull(ship, states[i, k, :3], scale)
             ax.fill(hull[:, 0], hull[:, 1], color=col, alpha=0.35 + 0.65 * n / max(len(idx) - 1, 1), zorder=5)
             if i == 0:
                 ax.annotate(f"t{n + 1}", (xy[i, k, 1], xy[i, k, 0]), textcoords="offset points", xytext=(6, 6),
@@ -134,8 +159,9 @@ def plot_monte_carlo(result, ax=None):
 
 
 def plot_course_speed(result, run: int = 0, axes=None):
-    """Course and speed of every ship over time, and the offsets the PSB-MPC ships applied (course offset
-    and speed factor of the chosen behaviour, held from one MPC update to the next).
+    """Course and speed of every ship over time, and the offsets each ship with collision avoidance applied
+    at its MPC updates (course offset and speed factor; PSB-MPC holds them until the next update, the gradient
+    methods follow their per-step sequences in between).
 
     Args:
         axes: three matplotlib axes (course, speed, offsets), default a new figure.
@@ -174,7 +200,50 @@ def plot_course_speed(result, run: int = 0, axes=None):
     if ax_o.lines:
         ax_o.legend(fontsize=7, loc="upper left")
     else:
-        ax_o.text(0.5, 0.5, "no ship runs PSB-MPC", transform=ax_o.transAxes, ha="center", va="center")
+        ax_o.text(0.5, 0.5, "no ship runs collision avoidance", transform=ax_o.transAxes, ha="center",
+                  va="center")
+    for ax in axes:
+        ax.grid(True, alpha=0.3)
+    return axes
+
+
+def plot_course_speed_compare(results, run: int = 0, labels=None, axes=None):
+    """The own-ship's course and speed over time in several simulations of the same scenario, overlaid -- e.g.
+    the same file run with ``--method smooth_sbmpc`` and ``--method sbmpc_init`` (seed 000, Fig. 15 style).
+
+    Args:
+        results: :class:`~psbmpc_jax.sim.SimulationResult` s, or a mapping label -> result.
+        run: the run drawn of each.
+        labels: one per result (default: the mapping's keys, else each result's method).
+        axes: two matplotlib axes (course, speed), default a new figure.
+    Returns the two axes."""
+    import matplotlib.pyplot as plt
+
+    if isinstance(results, dict):
+        labels = list(results) if labels is None else list(labels)
+        results = list(results.values())
+    results = list(results)
+    if not results:
+        raise ValueError("results must hold at least one simulation result")
+    labels = [str(getattr(r, "method", None) or "none") for r in results] if labels is None else list(labels)
+    if len(labels) != len(results):
+        raise ValueError(f"labels must have one entry per result ({len(results)}), got {len(labels)}")
+    if axes is None:
+        _, axes = plt.subplots(2, 1, figsize=(8, 5.5), sharex=True)
+    ax_c, ax_u = axes
+    for n, (res, label) in enumerate(zip(results, labels)):
+        _check_run(res, run)
+        own = res.states[run, 0]
+        col = SHIP_COLORS[(n + 2) % len(SHIP_COLORS)]
+        course = np.degrees(np.unwrap(own[:, 2]))
+        course -= 360.0 * np.floor(course[0] / 360.0)          # the first course in [0, 360)
+        ax_c.plot(res.t, course, color=col, lw=1.2, label=label)
+        ax_u.plot(res.t, own[:, 3], color=col, lw=1.2, label=label)
+    ax_c.set_ylabel("course [deg]")
+    ax_u.set_ylabel("speed [m/s]")
+    ax_u.set_xlabel("t [s]")
+    ax_c.set_title(f"{results[0].scenario.name}, run {run}: own-ship course and speed", fontsize=9)
+    ax_c.legend(fontsize=7, loc="best")
     for ax in axes:
         ax.grid(True, alpha=0.3)
     return axes
@@ -302,7 +371,8 @@ def animate_run(result, run: int = 0, path="animation.gif", *, fps: int = 10, ma
         ax.plot(route[:, 1], route[:, 0], ":", color=col, lw=0.8, alpha=0.6, zorder=2)
         (line,) = ax.plot([], [], "-", color=col, lw=1.2, zorder=3, label=ship.name + (" (own-ship)" if i == 0 else ""))
         tracks.append(line)
-        hull = plt.Polygon(np.zeros((5, 2)), closed=True, color=col, alpha=0.9, zorder=5)
+        hull = plt.Polygon(np.zeros((4 if getattr(ship, "is_point", False) else 5, 2)), closed=True, color=col,
+                           alpha=0.9, zorder=5)
         ax.add_patch(hull)
         hulls.append(hull)
     pad = 0.08 * span
@@ -320,7 +390,7 @@ def animate_run(result, run: int = 0, path="animation.gif", *, fps: int = 10, ma
     def draw(k):
         for i, ship in enumerate(sc.ships):
             tracks[i].set_data(xy[i, : k + 1, 1], xy[i, : k + 1, 0])
-            hulls[i].set_xy(_ship_outline(*states[i, k, :3], ship.length, ship.width, scale))
+            hulls[i].set_xy(_hull(ship, states[i, k, :3], scale))
         title.set_text(f"{sc.name}, run {run}: t = {result.t[k]:.0f} s (ships drawn x{scale:.0f})")
         return tracks + hulls + [title]
 

@@ -4,13 +4,17 @@ Per simulation step (``scenario.dt``), for all runs at once (NumPy arrays ``[R, 
 
 1. every ``sensor.period``: noisy position measurements of the targets update the own-ship's Kalman-filter
    tracks (constant-velocity model, single-point initiation; :mod:`psbmpc_jax.sim.tracker`);
-2. every ``mpc.period``: every ship that runs PSB-MPC solves once.  The own-ship sees the targets through
-   its tracks (estimate + covariance); targets that run their own PSB-MPC see the other ships' true states
-   with a small fixed covariance (``sensor.colav_target_cov``).  All solves of one update -- every run and
-   every PSB-MPC ship -- go to the device together, as one ``vmap``-ed call (``batch="vmap"``) or one call
-   each (``batch="loop"``); the planner state (last applied offsets) is carried per run and ship;
-3. the true vessels move one step: LOS guidance on their routes with the MPC's course offset and speed
-   factor, kinematic model with autopilot lags (:mod:`psbmpc_jax.sim.vessel`).
+2. every ``mpc.period``: every ship with collision avoidance plans once (:mod:`psbmpc_jax.sim.colav` says
+   which controller runs which ship: the own-ship the one of ``mpc.method``, targets with ``colav: psbmpc``
+   plain PSB-MPC).  The own-ship sees the targets through its tracks (estimate + covariance); targets that
+   run their own PSB-MPC see the other ships' true states with a small fixed covariance
+   (``sensor.colav_target_cov``).  All PSB-MPC solves of one update -- every run and every PSB-MPC ship -- go
+   to the device together, as one ``vmap``-ed call (``batch="vmap"``) or one call each (``batch="loop"``);
+   the smooth methods plan all runs in one call; the planner state (last applied offsets) is carried per run
+   and ship;
+3. the true vessels move one step: LOS guidance on their routes with the controller's course offset and speed
+   factor (the row of a per-step sequence that is due, for the gradient methods), kinematic model with
+   autopilot lags (:mod:`psbmpc_jax.sim.vessel`).
 
 Randomness: run ``r`` draws its measurement noise from ``numpy.random.default_rng([seed, r])``, so a run
 replays identically whatever the number of runs simulated with it.
@@ -29,25 +33,22 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..checks import integer, multiple_of
-from ..costs.base import term_names
 from ..costs.collision import standard_normal_table
 from ..distance_grid import build_distance_grid
-from ..evaluate import DEFAULT_TERMS
-from ..packing import SHARED_AXES, pack, stack, unpack
+from ..packing import unpack
 from ..params import params_as_arrays
 from .. import checks
 from ..planner import check_dtype
 from ..scenario_checks import check_run_size
 from ..situation import Obstacle, OwnShip, Situation
-from ..solve import Plan, PlannerState, solve, solve_arrays
 from ..scenario import Scenario, route_geometry
+from . import colav as colav_mod
 from . import metrics as metrics_mod
+from .colav import COST_NAMES, INFO_NAMES, POINT_HULL_M, _batched_solve, _costs_row, _Solver  # noqa: F401
 from .tracker import TrackerBank
 from .vessel import extend_route, kinematic_step, los_course, nominal_speed, pad_routes
 
 BATCH_MODES = ("auto", "vmap", "loop")
-#: Columns of ``SimulationResult.best_costs`` (the simulator plans with the default cost terms).
-COST_NAMES = term_names(DEFAULT_TERMS)
 
 
 @dataclass
@@ -61,10 +62,11 @@ class SimulationResult:
         track_x, track_P: the own-ship's target estimates ``[R, n_targets, K+1, 4]`` and covariances
             ``[..., 4, 4]`` (after the measurement update of that step, if any).
         solve_t: MPC update times ``[M]``.
-        offsets: applied (speed factor, course offset [rad]) ``[R, n_ships, M, 2]`` (nan for ships without
-            PSB-MPC).
+        offsets: (speed factor, course offset [rad]) applied at each update ``[R, n_ships, M, 2]`` (nan for
+            ships without collision avoidance); the gradient methods then follow their per-step sequences
+            until the next update.
         best_costs: cost columns of the chosen behaviour ``[R, n_ships, M, len(COST_NAMES)]`` (total, then
-            the terms: do, colregs, so, path).
+            the terms: do, colregs, so, path; nan for the smooth methods, which have no behaviour table).
         calls: one dict per MPC update: time, number of solves, number of device calls (1 with vmap, one per
             solve in the loop), wall time of all of them [s].
         solve_wall: wall time of each solve ``[R, n_ships, M]`` [s] (nan for ships without PSB-MPC): measured
@@ -75,6 +77,10 @@ class SimulationResult:
         metrics: per-run metrics (:func:`psbmpc_jax.sim.metrics.run_metrics` plus per-ship land distances
             and the minimum distance between every pair of ships).
         summary: :func:`psbmpc_jax.sim.metrics.aggregate` of ``metrics`` plus run information.
+        method: the own-ship's controller (``mpc.method``; None when it runs no collision avoidance).
+        colav_info: the own-ship's per-update diagnostics of the gradient methods, :data:`INFO_NAMES` ->
+            ``[R, M]`` (refined / DOCP cost, warm-start cost, constraint violation, whether the warm start was
+            kept, status, iterations; nan for ``psbmpc``).
     """
 
     scenario: Scenario
@@ -90,24 +96,13 @@ class SimulationResult:
     metrics: list
     summary: dict = field(default_factory=dict)
     solve_wall: np.ndarray | None = None
+    method: str | None = "psbmpc"
+    colav_info: dict | None = None
 
     @property
     def ship_names(self) -> list[str]:
         """Ship names in the order of the ship axis (own-ship first)."""
         return [s.name for s in self.scenario.ships]
-
-
-# ------------------------------------------------------------------------------------------- device calls
-@functools.lru_cache(maxsize=8)
-def _batched_solve(config):
-    """vmap of the solve step over the solves of one MPC update (chart, grid and behaviours broadcast)."""
-    return jax.jit(jax.vmap(functools.partial(solve_arrays, config=config), in_axes=(SHARED_AXES, 0, None, None)))
-
-
-@jax.jit
-def _costs_row(plan: Plan):
-    """The chosen behaviour's cost columns ``[..., 1 + n_terms]`` (total first, then the terms in order)."""
-    return jnp.stack([plan.total] + [plan.costs[name] for name in COST_NAMES[1:]], axis=-1)
 
 
 def resolve_batch_mode(batch: str) -> str:
@@ -229,37 +224,6 @@ class _Progress:
 
 
 # ------------------------------------------------------------------------------------------- simulation
-class _Solver:
-    """Device side of one MPC update: solve packed situations (one vmapped call or one call each) and return
-    the chosen behaviour indices, their cost columns and, on request, one situation's full evaluation."""
-
-    def __init__(self, mode: str, config, params, samples):
-        self.mode, self.config, self.params, self.samples = mode, config, params, samples
-
-    def __call__(self, packed: list, states: list, keep: int | None):
-        """Returns the chosen indices ``[n]``, their cost rows ``[n, C]``, the kept evaluation (or None) and the
-        wall time of each solve ``[n]`` [s] (None under vmap, where only the call as a whole is timed)."""
-        if self.mode == "vmap":
-            batch_state = jax.tree.map(lambda *a: jnp.stack([jnp.asarray(x) for x in a]), *states)
-            plan, _, ev = _batched_solve(self.config)(stack(packed), batch_state, self.params, self.samples)
-            best, costs = jax.device_get((plan.best, _costs_row(plan)))
-            kept = jax.tree.map(lambda a: a[keep], ev) if keep is not None else None
-            return np.asarray(best), np.asarray(costs), kept, None
-        outs, kept, walls = [], None, []
-        for n, (inputs, state) in enumerate(zip(packed, states)):
-            t0 = time.perf_counter()   # each solve timed up to its decision on the host
-            plan, _, ev = solve(inputs, state, self.params, self.samples, config=self.config)
-            outs.append(jax.device_get((plan.best, _costs_row(plan))))
-            walls.append(time.perf_counter() - t0)
-            if n == keep:
-                kept = ev
-        return (np.array([b for b, _ in outs]), np.stack([c for _, c in outs]), kept,
-                np.asarray(walls, dtype=float))
-
-    def device_calls(self, n_solves: int) -> int:
-        return 1 if self.mode == "vmap" else n_solves
-
-
 class _ClosedLoop:
     """The state of one :func:`simulate` call, arrays ``[runs, ships, ...]``, and one method per phase of a step
     (measure, plan, move).  Ship 0 is the own-ship."""
@@ -275,16 +239,18 @@ class _ClosedLoop:
         ships = self.ships = scenario.ships
         n, self.n_tg = len(ships), len(ships) - 1
         self.routes_ext, self.n_wp = pad_routes([extend_route(s.waypoints) for s in ships])
-        self.colav = np.array([s.colav == "psbmpc" for s in ships])
         self.lookahead, self.R_a = np.array([s.lookahead for s in ships]), np.array([s.R_a for s in ships])
         self.T_chi, self.T_U = np.array([s.T_chi for s in ships]), np.array([s.T_U for s in ships])
 
         dtype = np.dtype(config.dtype)
-        self.solver = _Solver(mode, config, params_as_arrays(mpc.params, dtype),
-                              standard_normal_table(key, config, dtype))
+        # which controller runs which ship (colav.py); the PSB-MPC group, if any, gets the solver's inputs
+        self.colav = colav_mod.build(scenario, mode, params_as_arrays(mpc.params, dtype),
+                                     standard_normal_table(key, config, dtype))
+        self.controlled = self.colav.controlled
         self.grid, self.grid_bounds = None, None
         region, self.reach = grid_region(scenario, [s.waypoints for s in ships])
-        if config.grounding_mode == "grid" and scenario.polygons:
+        uses_grid = any(isinstance(g, colav_mod.PSBMPCGroup) for g in self.colav.groups)
+        if config.grounding_mode == "grid" and scenario.polygons and uses_grid:
             reach = self.reach
             self.grid = build_distance_grid(scenario.polygons, config.grid_spacing, config.grid_margin, dtype=dtype,
                                             region=region)
@@ -306,7 +272,11 @@ class _ClosedLoop:
         self.offsets = np.full((R, n, M, 2), np.nan)
         self.best_costs = np.full((R, n, M, len(COST_NAMES)), np.nan)
         self.solve_wall = np.full((R, n, M), np.nan)
-        self.calls, self.snapshot, self.snap_pending = [], None, bool(self.colav[0])
+        self.colav_info = {name: np.full((R, M), np.nan) for name in INFO_NAMES}
+        # per ship: the per-step sequence being followed [R, N, 2], its step [s] and the time of its update
+        self.sequences: dict[int, tuple[np.ndarray, float, float]] = {}
+        self.calls, self.snapshot = [], None
+        self.snap_pending = bool(self.controlled[0]) and self.colav.snapshots
         pos_var, vel_var = sensor.colav_target_cov
         self.true_cov = np.diag([pos_var, pos_var, vel_var, vel_var])
 
@@ -327,7 +297,9 @@ class _ClosedLoop:
                 xs = self.states[r, j, k]
                 est = np.array([xs[0], xs[1], xs[3] * np.cos(xs[2]), xs[3] * np.sin(xs[2])])
                 cov = self.true_cov
-            obstacles.append(Obstacle(state=est, cov=cov, length=o.length, width=o.width, n_ps=self.sc.mpc.n_ps))
+            # a point target (length_m: 0) enters with a negligible hull: the planner needs a positive size
+            obstacles.append(Obstacle(state=est, cov=cov, length=max(o.length, POINT_HULL_M),
+                                      width=max(o.width, POINT_HULL_M), n_ps=self.sc.mpc.n_ps))
         return Situation(own, tuple(obstacles), self.sc.polygons)
 
     def measure(self, k: int) -> None:
@@ -340,28 +312,44 @@ class _ClosedLoop:
         self.track_x[:, :, k], self.track_P[:, :, k] = self.tracker.x, self.tracker.P
 
     def plan(self, k: int) -> None:
-        """One MPC update for every PSB-MPC ship of every run; apply the first maneuvers."""
-        mpc, config = self.sc.mpc, self.sc.mpc.config
+        """One MPC update of every ship with collision avoidance in every run (:mod:`psbmpc_jax.sim.colav`);
+        apply what is due now."""
         m = k // self.mpc_every
-        jobs = [(r, i) for r in range(self.R) for i in np.flatnonzero(self.colav)]
-        packed = [pack(self.situation(r, i, k), mpc.behaviours, config, grid=self.grid) for r, i in jobs]
-        states = [PlannerState((self.u_c[r, i], self.chi_off[r, i])) for r, i in jobs]
-        keep = jobs.index((self.snapshot_run, 0)) if self.snap_pending else None
+        keep_job = (self.snapshot_run, 0) if self.snap_pending else None
         t0 = time.perf_counter()
-        best, costs, kept, walls = self.solver(packed, states, keep)
+        decisions = self.colav.update(self, k, keep_job)
         wall = time.perf_counter() - t0
-        if walls is None:      # vmap: one call for every solve, amortised
-            walls = np.full(len(jobs), wall / len(jobs))
-        self.calls.append({"t_s": float(self.t[k]), "solves": len(jobs),
-                           "device_calls": self.solver.device_calls(len(jobs)), "wall_s": wall})
-        for n, (r, i) in enumerate(jobs):
-            u, c = mpc.behaviours[int(best[n])][0]
-            self.u_c[r, i], self.chi_off[r, i] = u, c
-            self.offsets[r, i, m] = (u, c)
-            self.best_costs[r, i, m] = costs[n]
-            self.solve_wall[r, i, m] = walls[n]
+        n_jobs = sum(len(d.jobs) for d in decisions)
+        self.calls.append({"t_s": float(self.t[k]), "solves": n_jobs,
+                           "device_calls": int(sum(d.device_calls for d in decisions)), "wall_s": wall})
+        kept = None
+        for d in decisions:
+            for n, (r, i) in enumerate(d.jobs):
+                u, c = d.first[n]
+                self.u_c[r, i], self.chi_off[r, i] = u, c
+                self.offsets[r, i, m] = (u, c)
+                self.best_costs[r, i, m] = d.costs[n]
+                self.solve_wall[r, i, m] = d.walls[n]
+                if i == 0 and d.info is not None:
+                    for name in INFO_NAMES:
+                        self.colav_info[name][r, m] = d.info[name][n]
+            ships = sorted({i for _, i in d.jobs})
+            for i in ships:
+                rows = [n for n, (_, s) in enumerate(d.jobs) if s == i]     # one per run, runs in order
+                if d.sequences is None:
+                    self.sequences.pop(i, None)
+                else:
+                    self.sequences[i] = (d.sequences[rows], float(d.seq_dt), float(self.t[k]))
+            if d.kept is not None:
+                kept = d.kept
         if kept is not None:
             self._keep_snapshot(kept, k, wall)
+
+    def _apply_sequences(self, k: int) -> None:
+        """The row of each ship's per-step sequence that is due at step ``k`` (the last row after its end)."""
+        for i, (seq, step, t_update) in self.sequences.items():
+            j = min(int(np.floor((self.t[k] - t_update) / step + 1e-9)), seq.shape[1] - 1)
+            self.u_c[:, i], self.chi_off[:, i] = seq[:, j, 0], seq[:, j, 1]
 
     def _keep_snapshot(self, ev, k: int, wall: float) -> None:
         """Keep the snapshot run's own-ship solve in full: the first one, replaced by the first that manoeuvres."""
@@ -377,6 +365,7 @@ class _ClosedLoop:
 
     def move(self, k: int) -> None:
         """True motion from step ``k`` to ``k + 1`` (LOS + offsets, kinematic model); tracks predicted along."""
+        self._apply_sequences(k)
         chi_los, self.seg = los_course(self.states[:, :, k, :2], self.seg, self.routes_ext, self.n_wp,
                                        self.lookahead, self.R_a)
         U_cmd = self.u_c * np.array([nominal_speed(s, self.t[k]) for s in self.ships])
@@ -387,7 +376,7 @@ class _ClosedLoop:
 
     def run(self, progress: bool) -> SimulationResult:
         label = f"{self.sc.name} ({self.R} run{'s' if self.R != 1 else ''})"
-        planning = bool(self.colav.any())
+        planning = bool(self.colav.groups)
         bar = (_Progress(len(self.solve_steps), label, progress) if planning
                else _Progress(self.K, label, progress, unit="steps", first_compiles=False))
         try:
@@ -406,7 +395,9 @@ class _ClosedLoop:
         return SimulationResult(
             scenario=self.sc, t=self.t, states=self.states, track_x=self.track_x, track_P=self.track_P,
             solve_t=self.t[self.solve_steps], offsets=self.offsets, best_costs=self.best_costs, calls=self.calls,
-            snapshot=self.snapshot, metrics=[], solve_wall=self.solve_wall)
+            snapshot=self.snapshot, metrics=[], solve_wall=self.solve_wall, method=self.colav.method,
+            colav_info=self.colav_info if self.colav.method in ("psbmpc_refine", "smooth_sbmpc", "sbmpc_init")
+            else None)
 
     def clip_exceeded(self) -> bool | None:
         """Whether a prediction can have reached beyond the land kept by ``chart.clip_m``: true when a ship came
@@ -481,7 +472,7 @@ def run_metrics(result: SimulationResult, r: int) -> dict:
     out = metrics_mod.run_metrics(
         result.t, states[0], states[1:], sc.own_ship.waypoints, sc.polygons, d_collision=sc.d_collision,
         ground_clearance=0.5 * sc.own_ship.width, solve_times=own_solves or None,
-        target_names=[s.name for s in sc.targets], classify_range=None)
+        target_names=[s.name for s in sc.targets], classify_range=None, arrival_radius=sc.own_ship.R_a)
     out["run"] = r
     out["solve_times_s"] = own_solves
     ships = sc.ships
@@ -491,7 +482,8 @@ def run_metrics(result: SimulationResult, r: int) -> dict:
                                                                                          sc.polygons)))
                                                for i in range(1, len(ships))]
         out["ships_min_distance_land_m"] = {s.name: d for s, d in zip(ships, land)}
-        out["ships_grounded"] = [s.name for s, d in zip(ships, land) if d < 0.5 * s.width]
+        # a point target (width 0) grounds when it is on land (distance 0)
+        out["ships_grounded"] = [s.name for s, d in zip(ships, land) if d < 0.5 * s.width or d <= 0.0]
     pairs, controlled = {}, []
     for i in range(len(ships)):
         for j in range(i + 1, len(ships)):
@@ -521,6 +513,7 @@ def summarize(result: SimulationResult, *, mode: str, grid_exceeded: bool | None
     per_solve = np.array([c["wall_s"] / c["solves"] for c in result.calls]) if result.calls else np.zeros(0)
     summary.update({
         "scenario": sc.name,
+        "method": result.method,
         "runs": len(result.metrics),
         "seed": sc.seed,
         "any_ship_groundings": sum(1 for m in result.metrics if m.get("ships_grounded")),
@@ -538,5 +531,34 @@ def summarize(result: SimulationResult, *, mode: str, grid_exceeded: bool | None
         "grid_region_exceeded": grid_exceeded,
         "chart_clip_exceeded": clip_exceeded,
     })
+    summary["colav_diagnostics"] = colav_diagnostics(result.colav_info)
     summary["solves"] = summary["mpc_solves_total"]   # older name, kept in memory only (not in metrics.json)
     return summary
+
+
+def colav_diagnostics(info: dict | None) -> dict | None:
+    """Summary of the own-ship's gradient-method diagnostics over all runs and updates (None for ``psbmpc``):
+    ``updates`` (own-ship plans), ``used_warm_fraction`` (the warm start was kept: the solver did not improve
+    on it or was infeasible), ``nonzero_status`` (plans whose status was not 0), ``violation_max``,
+    ``iterations_median`` and ``cost_improvement_median`` (warm-start cost minus final cost)."""
+    if info is None:
+        return None
+    used = np.asarray(info["used_warm"], float)
+    done = np.isfinite(used)
+    if not done.any():
+        return {"updates": 0}
+
+    def pick(name):
+        return np.asarray(info[name], float)[done]
+
+    improvement = pick("warm_cost") - pick("cost")
+    improvement = improvement[np.isfinite(improvement)]
+    viol = pick("violation")
+    viol = viol[np.isfinite(viol)]
+    iters = pick("iterations")
+    iters = iters[np.isfinite(iters)]
+    return {"updates": int(done.sum()), "used_warm_fraction": float(np.mean(pick("used_warm") > 0)),
+            "nonzero_status": int(np.sum(pick("status") != 0)),
+            "violation_max": float(viol.max()) if viol.size else None,
+            "iterations_median": float(np.median(iters)) if iters.size else None,
+            "cost_improvement_median": float(np.median(improvement)) if improvement.size else None}

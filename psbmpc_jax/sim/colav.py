@@ -1,0 +1,406 @@
+"""Which controller runs which ship in the closed-loop simulator, and one MPC update of all of them.
+
+Ship 0 (the own-ship) runs the controller of ``scenario.mpc.method`` (unless its ``colav`` is ``none``); a
+target with ``colav: psbmpc`` always runs plain PSB-MPC, whatever the method, so the traffic is the same when
+own-ship methods are compared:
+
+===================  ==========================================================================================
+``psbmpc``           grid search over the behaviour table (:func:`psbmpc_jax.solve.solve`); the first maneuver
+                     of the chosen behaviour is held until the next update (the simulator as it always was)
+``psbmpc_refine``    the same grid search, then :func:`psbmpc_jax.refine.refine` (gradient refinement): its
+                     per-step controls are applied step by step between two updates (row ``j`` from
+                     ``t_update + j * config.dt`` on)
+``smooth_sbmpc``     Smooth-SBMPC of seed 000 (:class:`psbmpc_jax.smooth.planner.SmoothSBMPCPlanner`), all runs
+                     of an update in one ``plan_batch`` call; per-step controls at ``mpc.smooth.dt_s``
+``sbmpc_init``       its initialisation stage alone (``init_only=True``): the paper's "original SB-MPC" (Sim 01)
+===================  ==========================================================================================
+
+Every controller returns, per (run, ship) job of an update, the offsets (speed factor, course offset [rad])
+applied at the update and optionally a per-step sequence with its step; the simulator
+(:mod:`psbmpc_jax.sim.simulator`) applies them on top of LOS guidance exactly like PSB-MPC's offsets.  A
+sequence is used only when its first row is the offsets to apply now (else those are held for the period).
+
+The smooth planner sees the own-ship's true state and the targets through the own-ship's tracks: the Kalman
+filter's position, course ``atan2(V_east, V_north)`` and speed ``|V|`` (the experiment runs with tracking
+noise; seed 000 itself gives its planner the true target states).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import time
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ..costs.base import term_names
+from ..evaluate import DEFAULT_TERMS
+from ..packing import SHARED_AXES, pack, stack
+from ..solve import Plan, PlannerState, solve, solve_arrays
+
+#: Columns of ``SimulationResult.best_costs`` (the simulator plans with the default cost terms).
+COST_NAMES = term_names(DEFAULT_TERMS)
+#: Per-update diagnostics of the gradient methods (``SimulationResult.colav_info``; NaN where not applicable).
+INFO_NAMES = ("cost", "warm_cost", "violation", "used_warm", "status", "iterations")
+#: Size [m] a point target (``length_m: 0``) gets in a PSB-MPC situation, which needs a positive hull.
+POINT_HULL_M = 1e-6
+
+
+@dataclass
+class Decisions:
+    """What one controller decided at one update, per job ``(run, ship)``.
+
+    Attributes:
+        jobs: the ``(run, ship)`` pairs, in the order of the arrays.
+        first: offsets ``(u, chi)`` applied at the update ``[n, 2]``.
+        sequences: per-step offsets ``[n, N, 2]`` (row ``j`` applies from ``t_update + j * seq_dt`` on, the last
+            row to the end of the period), or None: ``first`` is held until the next update.
+        seq_dt: the step of ``sequences`` [s].
+        costs: the chosen behaviour's cost columns ``[n, len(COST_NAMES)]`` (NaN for the smooth methods).
+        info: :data:`INFO_NAMES` -> ``[n]`` (refinement / DOCP diagnostics) or None.
+        walls: wall time of each job [s] (amortised over the jobs of one device call).
+        device_calls, wall: device calls of this update and their wall time [s].
+        kept, kept_job: the snapshot job's full evaluation (PSB-MPC only) or None.
+    """
+
+    jobs: list
+    first: np.ndarray
+    costs: np.ndarray
+    walls: np.ndarray
+    device_calls: int
+    wall: float
+    sequences: np.ndarray | None = None
+    seq_dt: float | None = None
+    info: dict | None = None
+    kept: object = None
+    kept_job: tuple | None = None
+
+
+def consistent_sequences(first: np.ndarray, controls: np.ndarray, atol: float = 1e-6) -> np.ndarray:
+    """``controls [n, N, 2]`` with row 0 set to ``first [n, 2]``; a job whose row 0 differs from ``first`` by more
+    than ``atol`` (a fallback that applies something else) holds ``first`` over the whole sequence."""
+    first = np.asarray(first, float)
+    seq = np.array(controls, dtype=float, copy=True)
+    same = np.all(np.abs(seq[:, 0] - first) <= atol, axis=-1)
+    seq[~same] = first[~same, None, :]
+    seq[:, 0] = first
+    return seq
+
+
+# ------------------------------------------------------------------------------------------------ PSB-MPC
+@functools.lru_cache(maxsize=8)
+def _batched_solve(config):
+    """vmap of the solve step over the solves of one MPC update (chart, grid and behaviours broadcast)."""
+    return jax.jit(jax.vmap(functools.partial(solve_arrays, config=config), in_axes=(SHARED_AXES, 0, None, None)))
+
+
+@jax.jit
+def _costs_row(plan: Plan):
+    """The chosen behaviour's cost columns ``[..., 1 + n_terms]`` (total first, then the terms in order)."""
+    return jnp.stack([plan.total] + [plan.costs[name] for name in COST_NAMES[1:]], axis=-1)
+
+
+def _refine_function():
+    """:func:`psbmpc_jax.refine.refine` and its settings class (ImportError with a clear message if missing)."""
+    try:
+        from ..refine import RefineSettings, refine
+    except ImportError as exc:
+        raise ImportError(f"mpc.method psbmpc_refine needs psbmpc_jax.refine (refine, RefineSettings), which "
+                          f"cannot be imported here: {exc}") from exc
+    return refine, RefineSettings
+
+
+class _Solver:
+    """Device side of one PSB-MPC update: solve packed situations (one vmapped call or one call each) and return
+    the chosen behaviour indices, their cost columns and, on request, one situation's full evaluation; the jobs
+    flagged ``refine`` are refined after their solve (:func:`psbmpc_jax.refine.refine`)."""
+
+    def __init__(self, mode: str, config, params, samples, refine=None):
+        self.mode, self.config, self.params, self.samples = mode, config, params, samples
+        self.refine = refine            # (refine function, settings) or None
+
+    def _refine_one(self, inputs, plan, state, evaluation):
+        """Refine one solve: ``state`` is the planner state passed TO that solve, ``evaluation`` its third output
+        (so the grid is not evaluated twice)."""
+        fn, settings = self.refine
+        ref = fn(inputs, plan, state, self.params, self.samples, self.config, settings, evaluation=evaluation)
+        return jax.device_get(ref)
+
+    def __call__(self, packed: list, states: list, keep: int | None, refine_jobs=()):
+        """Returns the chosen indices ``[n]``, their cost rows ``[n, C]``, the kept evaluation (or None), the wall
+        time of each solve ``[n]`` [s] (None under vmap, where only the call as a whole is timed) and
+        ``{job index: Refinement}`` of the refined jobs (host arrays)."""
+        refine_jobs = set(refine_jobs)
+        refined = {}
+        if self.mode == "vmap":
+            batch_state = jax.tree.map(lambda *a: jnp.stack([jnp.asarray(x) for x in a]), *states)
+            plan, _, ev = _batched_solve(self.config)(stack(packed), batch_state, self.params, self.samples)
+            best, costs = jax.device_get((plan.best, _costs_row(plan)))
+            kept = jax.tree.map(lambda a: a[keep], ev) if keep is not None else None
+            for n in sorted(refine_jobs):
+                one = functools.partial(lambda n_, a: a[n_], n)
+                refined[n] = self._refine_one(packed[n], jax.tree.map(one, plan), states[n], jax.tree.map(one, ev))
+            return np.asarray(best), np.asarray(costs), kept, None, refined
+        outs, kept, walls = [], None, []
+        for n, (inputs, state) in enumerate(zip(packed, states)):
+            t0 = time.perf_counter()   # each solve timed up to its decision on the host
+            plan, _, ev = solve(inputs, state, self.params, self.samples, config=self.config)
+            outs.append(jax.device_get((plan.best, _costs_row(plan))))
+            if n in refine_jobs:
+                refined[n] = self._refine_one(inputs, plan, state, ev)
+            walls.append(time.perf_counter() - t0)
+            if n == keep:
+                kept = ev
+        return (np.array([b for b, _ in outs]), np.stack([c for _, c in outs]), kept,
+                np.asarray(walls, dtype=float), refined)
+
+    def device_calls(self, n_solves: int, n_refined: int = 0) -> int:
+        return (1 if self.mode == "vmap" else n_solves) + n_refined
+
+
+class PSBMPCGroup:
+    """The ships that run PSB-MPC (the own-ship under ``psbmpc`` / ``psbmpc_refine``, targets with ``colav:
+    psbmpc``): every run and ship of an update solved together; ``refine_ships`` are refined after the search."""
+
+    def __init__(self, ships, mode: str, mpc, params, samples, refine_ships=()):
+        self.ships, self.mpc = tuple(int(i) for i in ships), mpc
+        self.refine_ships = tuple(int(i) for i in refine_ships)
+        refine = None
+        if self.refine_ships:
+            fn, settings_cls = _refine_function()
+            refine = (fn, refine_settings(mpc, settings_cls))
+        self.solver = _Solver(mode, mpc.config, params, samples, refine)
+
+    def update(self, loop, k: int, keep_job) -> Decisions:
+        mpc, config = self.mpc, self.mpc.config
+        jobs = [(r, i) for r in range(loop.R) for i in self.ships]
+        packed = [pack(loop.situation(r, i, k), mpc.behaviours, config, grid=loop.grid) for r, i in jobs]
+        states = [PlannerState((loop.u_c[r, i], loop.chi_off[r, i])) for r, i in jobs]
+        keep = jobs.index(keep_job) if keep_job in jobs else None
+        refine_jobs = [n for n, (_, i) in enumerate(jobs) if i in self.refine_ships]
+        t0 = time.perf_counter()
+        best, costs, kept, walls, refined = self.solver(packed, states, keep, refine_jobs)
+        wall = time.perf_counter() - t0
+        if walls is None:      # vmap: one call for every solve, amortised
+            walls = np.full(len(jobs), wall / len(jobs))
+        first = np.array([mpc.behaviours[int(b)][0] for b in best], dtype=float).reshape(len(jobs), 2)
+        out = Decisions(jobs=jobs, first=first, costs=np.asarray(costs, float), walls=np.asarray(walls, float),
+                        device_calls=self.solver.device_calls(len(jobs), len(refined)), wall=wall, kept=kept,
+                        kept_job=keep_job if keep is not None else None)
+        if refined:
+            out = _with_refinements(out, refined, mpc.config.dt)
+        return out
+
+
+def refine_settings(mpc, settings_cls):
+    """``RefineSettings`` from the scenario's ``mpc.refine`` and, where the file gives them, ``mpc.solver`` (over
+    RefineSettings' default solver) and ``mpc.fis.e_cl_m`` / ``n_y`` (the refinement's FIS edge width and output
+    grid).  The rest (``batch``, ``block``, ``path_eps``) are RefineSettings' defaults."""
+    from ..nlp import SolverSettings
+
+    r = mpc.refine
+    kw = {k: v for k, v in (("fis_e_cl", r.fis_e_cl), ("fis_n_y", r.fis_n_y)) if v is not None}
+    if mpc.solver.given():       # the file's keys over the refinement's own (cheap) default solver
+        base = getattr(settings_cls(), "solver", None)
+        kw["solver"] = dataclasses.replace(base if isinstance(base, SolverSettings) else SolverSettings(),
+                                           **mpc.solver.given())
+    return settings_cls(n_starts=r.n_starts, horizon=r.horizon, colregs=r.colregs, **kw)
+
+
+def _with_refinements(dec: Decisions, refined: dict, step: float) -> Decisions:
+    """Jobs that were refined apply the refinement's per-step controls; the others hold their grid offsets."""
+    n_max = max(np.asarray(ref.controls).shape[0] for ref in refined.values())
+    first = dec.first.copy()
+    seq = np.repeat(first[:, None, :], n_max, axis=1)
+    info = {name: np.full(len(dec.jobs), np.nan) for name in INFO_NAMES}
+    for n, ref in refined.items():
+        apply = np.asarray(ref.apply, float).reshape(2)
+        ctrl = np.asarray(ref.controls, float).reshape(-1, 2)
+        ctrl = np.concatenate([ctrl, np.repeat(ctrl[-1:], n_max - len(ctrl), axis=0)]) if len(ctrl) < n_max else ctrl
+        first[n] = apply
+        seq[n] = consistent_sequences(apply[None], ctrl[None])[0]
+        for name in INFO_NAMES:
+            info[name][n] = float(np.asarray(getattr(ref, name)))
+    return dataclasses.replace(dec, first=first, sequences=seq, seq_dt=float(step), info=info)
+
+
+# ------------------------------------------------------------------------------------------------ smooth
+def smooth_planner_class():
+    """:class:`psbmpc_jax.smooth.planner.SmoothSBMPCPlanner` (ImportError with a clear message if missing)."""
+    try:
+        from ..smooth.planner import SmoothSBMPCPlanner
+    except ImportError as exc:
+        raise ImportError(f"mpc.method smooth_sbmpc / sbmpc_init needs psbmpc_jax.smooth.planner "
+                          f"(SmoothSBMPCPlanner), which cannot be imported here: {exc}") from exc
+    return SmoothSBMPCPlanner
+
+
+def smooth_arguments(scenario) -> dict:
+    """The keyword arguments of ``SmoothSBMPCPlanner`` for the scenario's own-ship: weights (``mpc.fis``,
+    ``mpc.smooth.k_ntp``; the rest SPEC_SEEDS §1.8 defaults), the ship model from the own-ship's spec (nominal
+    speed, LOS lookahead, acceptance radius, autopilot time constants), the settings (``mpc.smooth``,
+    ``mpc.fis``), the solver (the keys of ``mpc.solver`` over SolverSettings' defaults; None without any: the
+    planner's own default), the number of starts, ``init_only`` for ``sbmpc_init`` and the dtype of
+    ``mpc.config``."""
+    from ..nlp import SolverSettings
+    from ..smooth.init_stage import ShipModel, SmoothSettings, SmoothWeights
+
+    mpc, own = scenario.mpc, scenario.own_ship
+    sm, fis = mpc.smooth, mpc.fis
+    given = mpc.solver.given()
+    return dict(
+        weights=SmoothWeights(d_cl=fis.d_cl, e_cl=fis.e_cl, eps=fis.eps, k_ntp=sm.k_ntp),
+        model=ShipModel(U_d=float(own.U_d), lookahead=float(own.lookahead), R_a=float(own.R_a),
+                        T_chi=float(own.T_chi), T_U=float(own.T_U)),
+        settings=SmoothSettings(T_init=sm.T_init, T_mpc=sm.T_mpc, dt=sm.dt, r_dom=sm.domain_radius,
+                                corridor_half_width=sm.corridor_half_width, terminal=sm.terminal,
+                                fis_completion=fis.completion, n_y=fis.n_y),
+        solver=SolverSettings(**given) if given else None,
+        n_starts=sm.n_starts, init_only=mpc.method == "sbmpc_init", dtype=mpc.config.dtype)
+
+
+def tracked_targets(track_x: np.ndarray) -> np.ndarray:
+    """Tracks ``[..., 4]`` (north, east, V_north, V_east) -> point targets ``[..., 4]`` (north, east, course
+    ``atan2(V_east, V_north)`` [rad], speed ``|V|``)."""
+    x = np.asarray(track_x, float)
+    return np.stack([x[..., 0], x[..., 1], np.arctan2(x[..., 3], x[..., 2]), np.hypot(x[..., 2], x[..., 3])],
+                    axis=-1)
+
+
+class SmoothGroup:
+    """The own-ship under ``smooth_sbmpc`` / ``sbmpc_init``: one ``plan_batch`` call per update for all runs."""
+
+    ships = (0,)
+
+    def __init__(self, scenario, planner_cls=None):
+        cls = smooth_planner_class() if planner_cls is None else planner_cls
+        self.step = float(scenario.mpc.smooth.dt)
+        self.planner = cls(scenario.polygons, batch="map", **smooth_arguments(scenario))
+
+    def update(self, loop, k: int, keep_job) -> Decisions:
+        R = loop.R
+        states = loop.states[:, 0, k]                                           # [R, 4] true own-ship state
+        targets = tracked_targets(loop.track_x[:, :, k])                        # [R, I, 4]
+        last = np.stack([loop.u_c[:, 0], loop.chi_off[:, 0]], axis=-1)         # [R, 2] applied offsets
+        route = loop.routes_ext[0, : loop.n_wp[0]]                              # the route, extended
+        t0 = time.perf_counter()
+        plan = self.planner.plan_batch(states, route, targets, last, np.asarray(loop.seg[:, 0]))
+        plan = jax.device_get(plan)
+        wall = time.perf_counter() - t0
+        first = np.asarray(plan.apply, float).reshape(R, 2)
+        controls = np.asarray(plan.controls, float).reshape(R, -1, 2)
+        info = {name: np.asarray(getattr(plan, name), float).reshape(R) for name in INFO_NAMES}
+        return Decisions(jobs=[(r, 0) for r in range(R)], first=first,
+                         costs=np.full((R, len(COST_NAMES)), np.nan), walls=np.full(R, wall / R), device_calls=1,
+                         wall=wall, sequences=consistent_sequences(first, controls), seq_dt=self.step, info=info)
+
+
+class StepPlan(NamedTuple):
+    """What :meth:`SmoothStepPlanner.plan_batch` returns: the fields of ``SmoothPlan`` with a leading run axis."""
+
+    apply: np.ndarray
+    controls: np.ndarray
+    psi: np.ndarray
+    cost: np.ndarray
+    warm_cost: np.ndarray
+    violation: np.ndarray
+    used_warm: np.ndarray
+    status: np.ndarray
+    iterations: np.ndarray
+
+
+class SmoothStepPlanner:
+    """A reference planner with ``SmoothSBMPCPlanner``'s interface, built on the existing single-situation
+    functions :func:`psbmpc_jax.smooth.docp.smooth_sbmpc_step` (``init_only=False``: init stage, corridor, one
+    DOCP solve from the warm start, safeguard) and :func:`psbmpc_jax.smooth.init_stage.init_stage`
+    (``init_only=True``: the original SB-MPC; its per-step controls are the init stage's offsets).  One device
+    call per run, no multi-start (``n_starts`` and ``batch`` are accepted and ignored).  For tests and
+    cross-checks: pass it as ``build(..., smooth_planner_cls=SmoothStepPlanner)``."""
+
+    def __init__(self, polygons=(), *, weights=None, model=None, settings=None, solver=None, n_starts=4,
+                 batch="map", init_only=False, dtype="float32"):
+        from ..nlp import SolverSettings
+        from ..packing import pack_world
+        from ..params import PlannerConfig
+        from ..smooth import buffered_chart
+        from ..smooth.init_stage import ShipModel, SmoothSettings, SmoothWeights
+
+        self.weights = SmoothWeights() if weights is None else weights
+        self.model = ShipModel() if model is None else model
+        self.settings = SmoothSettings() if settings is None else settings
+        self.solver = SolverSettings() if solver is None else solver
+        self.init_only, self.dtype = bool(init_only), np.dtype(dtype)
+        self.land = pack_world(tuple(polygons), PlannerConfig(dtype=str(self.dtype))).polygons
+        self.buffered = None if self.init_only else buffered_chart(tuple(polygons), self.settings.r_dom,
+                                                                    dtype=str(self.dtype))
+
+    def plan(self, state0, route, targets, last, segment=0) -> StepPlan:
+        from ..smooth.docp import smooth_sbmpc_step
+        from ..smooth.init_stage import init_stage
+
+        f = self.dtype.type
+        state0, targets, last = (np.asarray(a, self.dtype) for a in (state0, targets, last))
+        route = np.asarray(route, self.dtype)[int(segment):]
+        n = self.settings.n_mpc
+        if self.init_only:
+            init = jax.device_get(init_stage(state0, route, targets, last, self.land, self.weights, self.model,
+                                             self.settings))
+            cost = np.asarray(init.cost[0], self.dtype)
+            return StepPlan(np.asarray(init.controls[0]), np.asarray(init.controls[:n]), np.asarray(init.psi), cost,
+                            cost, f(0.0), np.int32(1), np.int32(0), np.int32(0))
+        st = jax.device_get(smooth_sbmpc_step(state0, route, targets, last, self.land, self.buffered,
+                                              weights=self.weights, model=self.model, settings=self.settings,
+                                              solver=self.solver))
+        return StepPlan(np.asarray(st.apply), np.asarray(st.controls), np.asarray(st.init.psi), np.asarray(st.cost),
+                        np.asarray(st.warm_cost), np.asarray(st.violation), np.asarray(st.used_warm, np.int32),
+                        np.asarray(st.solver.status), np.asarray(st.solver.inner_iterations))
+
+    def plan_batch(self, states, route, targets, last, segments) -> StepPlan:
+        rows = [self.plan(states[r], route, targets[r], last[r], int(segments[r])) for r in range(len(states))]
+        return StepPlan(*(np.stack([np.asarray(getattr(p, name)) for p in rows]) for name in StepPlan._fields))
+
+
+# ------------------------------------------------------------------------------------------------ dispatch
+@dataclass
+class Colav:
+    """The controllers of a scenario's ships (:func:`build`): ``groups`` in call order, ``method`` of the
+    own-ship (None when it runs no collision avoidance), ``controlled`` ship mask."""
+
+    groups: list
+    method: str | None
+    controlled: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+
+    def update(self, loop, k: int, keep_job) -> list[Decisions]:
+        """One MPC update: every group's decisions for every run."""
+        return [g.update(loop, k, keep_job) for g in self.groups]
+
+    @property
+    def snapshots(self) -> bool:
+        """Whether the own-ship's solves can be kept in full (PSB-MPC search of the own-ship)."""
+        return any(isinstance(g, PSBMPCGroup) and 0 in g.ships for g in self.groups)
+
+
+def build(scenario, mode: str, params, samples, *, smooth_planner_cls=None) -> Colav:
+    """The controllers of ``scenario``: who runs what (module docstring).  ``params`` / ``samples``: the PSB-MPC
+    parameters as arrays and the estimator's sample table; ``smooth_planner_cls`` replaces
+    :class:`~psbmpc_jax.smooth.planner.SmoothSBMPCPlanner` (same interface)."""
+    ships = scenario.ships
+    method = scenario.mpc.method if ships[0].colav != "none" else None
+    controlled = np.array([s.colav != "none" for s in ships])
+    psb = [i for i, s in enumerate(ships) if s.colav == "psbmpc" and (i > 0 or method in ("psbmpc", "psbmpc_refine"))]
+    groups = []
+    if method in ("smooth_sbmpc", "sbmpc_init"):
+        groups.append(SmoothGroup(scenario, smooth_planner_cls))
+    if psb:
+        groups.append(PSBMPCGroup(psb, mode, scenario.mpc, params, samples,
+                                  refine_ships=(0,) if method == "psbmpc_refine" else ()))
+    return Colav(groups=groups, method=method, controlled=controlled)
+
+
+__all__ = ["COST_NAMES", "INFO_NAMES", "POINT_HULL_M", "Decisions", "Colav", "PSBMPCGroup", "SmoothGroup",
+           "SmoothStepPlanner", "StepPlan", "build", "smooth_arguments", "smooth_planner_class", "refine_settings",
+           "tracked_targets", "consistent_sequences"]
