@@ -10,17 +10,48 @@ Public API::
 See the README for the parameter table and ``docs/algorithm.md`` for the exact cost.
 """
 
-from .behaviours import enumerate_behaviours, enumerate_behaviours_deg, paper_behaviours
-from .cache import enable_compilation_cache
-from .costs.base import cost_term
-from .evaluate import DEFAULT_TERMS, Evaluation, evaluate
-from .objective import objective
-from .packing import Capacities, PlanResult, SolveInputs, pack
-from .params import Params, PlannerConfig
-from .planner import Planner
-from .situation import Obstacle, OwnShip, Situation
-from .sharding import solve_sharded
-from .solve import Plan, PlannerState, solve
+import importlib
+from typing import TYPE_CHECKING
+
+#: Public name -> the submodule that defines it.  Loaded on first access (PEP 562), so that importing a
+#: host-only submodule -- the scenario loader, the CLI's argument parsing -- does not import JAX.
+_EXPORTS = {
+    "enumerate_behaviours": "behaviours", "enumerate_behaviours_deg": "behaviours", "paper_behaviours": "behaviours",
+    "enable_compilation_cache": "cache", "cost_term": "costs.base",
+    "DEFAULT_TERMS": "evaluate", "Evaluation": "evaluate", "evaluate": "evaluate",
+    "objective": "objective",
+    "Capacities": "packing", "PlanResult": "packing", "SolveInputs": "packing", "pack": "packing",
+    "Params": "params", "PlannerConfig": "params", "Planner": "planner",
+    "Obstacle": "situation", "OwnShip": "situation", "Situation": "situation",
+    "solve_sharded": "sharding", "Plan": "solve", "PlannerState": "solve", "solve": "solve",
+}
+
+if TYPE_CHECKING:  # pragma: no cover - for static analysis only
+    from .behaviours import enumerate_behaviours, enumerate_behaviours_deg, paper_behaviours
+    from .cache import enable_compilation_cache
+    from .costs.base import cost_term
+    from .evaluate import DEFAULT_TERMS, Evaluation, evaluate
+    from .objective import objective
+    from .packing import Capacities, PlanResult, SolveInputs, pack
+    from .params import Params, PlannerConfig
+    from .planner import Planner
+    from .situation import Obstacle, OwnShip, Situation
+    from .sharding import solve_sharded
+    from .solve import Plan, PlannerState, solve
+
+
+def __getattr__(name):
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'psbmpc_jax' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_EXPORTS))
+
 
 from importlib.metadata import PackageNotFoundError as _NoMetadata, version as _dist_version
 

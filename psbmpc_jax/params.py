@@ -17,9 +17,11 @@ from __future__ import annotations
 import dataclasses
 import math
 import numbers
+import importlib.abc
+import importlib.util
+import sys
 from dataclasses import dataclass, fields
 
-import jax
 import numpy as np
 
 ESTIMATORS = ("quadrature", "mc", "ce")
@@ -126,14 +128,50 @@ class PlannerConfig:
         return dataclasses.replace(self, **changes)
 
 
+_PYTREES: list = []          # dataclasses to register with JAX (every field a leaf)
+
+
+def _register_pytrees() -> None:
+    """Register the collected dataclasses as pytrees (idempotent; needs jax imported)."""
+    import jax
+
+    while _PYTREES:
+        cls = _PYTREES.pop()
+        names = tuple(f.name for f in fields(cls))
+        jax.tree_util.register_pytree_node(
+            cls,
+            lambda obj, names=names: (tuple(getattr(obj, n) for n in names), None),
+            lambda _, leaves, cls=cls, names=names: cls(**dict(zip(names, leaves))),
+        )
+
+
+class _AfterJaxImport(importlib.abc.MetaPathFinder):
+    """Registers the pytrees right after ``jax`` is first imported.
+
+    Importing this module must not import JAX (about 1-2 s): loading and checking a scenario file, and failing
+    fast on a bad one, needs only NumPy and shapely.  So when jax is not imported yet, this one-shot finder
+    wraps jax's loader and registers the pytrees as soon as ``import jax`` has run, whoever imports it."""
+
+    def find_spec(self, name, path=None, target=None):
+        if name != "jax":
+            return None
+        sys.meta_path.remove(self)
+        spec = importlib.util.find_spec("jax")
+        if spec is None or spec.loader is None:
+            return spec
+        run = spec.loader.exec_module
+
+        def exec_module(module):
+            run(module)
+            _register_pytrees()
+
+        spec.loader.exec_module = exec_module
+        return spec
+
+
 def _pytree_dataclass(cls):
-    """Register a frozen dataclass as a pytree whose every field is a leaf."""
-    names = tuple(f.name for f in fields(cls))
-    jax.tree_util.register_pytree_node(
-        cls,
-        lambda obj: (tuple(getattr(obj, n) for n in names), None),
-        lambda _, leaves: cls(**dict(zip(names, leaves))),
-    )
+    """Mark a frozen dataclass to be registered as a pytree whose every field is a leaf."""
+    _PYTREES.append(cls)
     return cls
 
 
@@ -274,7 +312,15 @@ def validate_params(params: Params, config: PlannerConfig | None = None, n_maneu
 
 def params_as_arrays(params: Params, dtype) -> Params:
     """The same parameters with every leaf a 0-d array of ``dtype`` (stable jit signature)."""
+    import jax
+
     return jax.tree_util.tree_map(lambda v: np.asarray(v, dtype=dtype), params)
+
+
+if "jax" in sys.modules:
+    _register_pytrees()
+else:
+    sys.meta_path.insert(0, _AfterJaxImport())
 
 
 __all__ = ["PlannerConfig", "Params", "validate_params", "params_as_arrays", "ESTIMATORS", "DTYPES",
