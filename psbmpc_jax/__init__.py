@@ -11,6 +11,8 @@ See the README for the parameter table and ``docs/algorithm.md`` for the exact c
 """
 
 import importlib
+import sys
+import types
 from typing import TYPE_CHECKING
 
 #: Public name -> the submodule that defines it.  Loaded on first access (PEP 562), so that importing a
@@ -38,6 +40,22 @@ if TYPE_CHECKING:  # pragma: no cover - for static analysis only
     from .situation import Obstacle, OwnShip, Situation
     from .sharding import solve_sharded
     from .solve import Plan, PlannerState, solve
+
+
+#: Public functions named like the submodule that defines them: the package attribute is the function (as
+#: ``from psbmpc_jax import evaluate`` has always given), even after the submodule is imported -- which would
+#: otherwise bind the name to the module.
+_SHADOWED = frozenset(n for n, m in _EXPORTS.items() if n == m)
+
+
+class _Package(types.ModuleType):
+    def __setattr__(self, name, value):
+        if name in _SHADOWED and isinstance(value, types.ModuleType):
+            return          # the import system binding a submodule: keep resolving the name to the function
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package
 
 
 def __getattr__(name):
