@@ -393,3 +393,20 @@ def test_aggregate_counts_and_stats():
 def test_bad_inputs_raise_value_error(call, match):
     with pytest.raises(ValueError, match=match):
         call()
+
+
+def test_longest_stop_by_hand():
+    from psbmpc_jax.sim.metrics import STOP_SPEED_MPS, longest_stop
+
+    t = np.arange(10) * 2.0                                   # 0, 2, ..., 18 s
+    u = np.array([2, 0.1, 0.0, 0.2, 1, 0.05, 2, 0.1, 0.1, 0.1])
+    # slow (<= 0.2) runs: samples 1-3 (4 s), 5 alone (0 s), 7-9 to the end (4 s)
+    assert longest_stop(t, u) == 4.0
+    assert longest_stop(t, u, threshold=0.0) == 0.0          # one isolated sample at exactly 0
+    assert longest_stop(t, np.full(10, 3.0)) == 0.0
+    assert longest_stop(t, np.zeros(10)) == 18.0
+    assert STOP_SPEED_MPS == 0.2
+    with pytest.raises(ValueError, match="speed must have the shape"):
+        longest_stop(t, u[:-1])
+    with pytest.raises(ValueError, match="threshold"):
+        longest_stop(t, u, threshold=-1.0)

@@ -46,6 +46,8 @@ __all__ = [
     "cross_track_deviation",
     "course_rate",
     "voyage_metrics",
+    "longest_stop",
+    "STOP_SPEED_MPS",
     "run_metrics",
     "aggregate",
 ]
@@ -413,6 +415,29 @@ def course_rate(t, chi):
     return wrap_angle_host(np.diff(chi)) / np.diff(t)
 
 
+#: A ship "stops dead" while its speed over ground is at or below this [m/s] (:func:`longest_stop`).
+STOP_SPEED_MPS = 0.2
+
+
+def longest_stop(t, speed, threshold=STOP_SPEED_MPS) -> float:
+    """The longest stretch of time [s] during which ``speed`` stays at or below ``threshold``: from the first
+    sample of a run of such samples to its last (0 when no sample, or one isolated sample, is that slow)."""
+    t = _check_t(t)
+    speed = np.asarray(speed, dtype=float)
+    if speed.shape != t.shape:
+        raise ValueError(f"speed must have the shape of t {t.shape}, got {speed.shape}")
+    slow = speed <= positive(threshold, "threshold", allow_zero=True)
+    best, start = 0.0, None
+    for k, is_slow in enumerate(slow):
+        if is_slow and start is None:
+            start = k
+        if start is not None and (not is_slow or k == slow.size - 1):
+            end = k if is_slow else k - 1
+            best = max(best, float(t[end] - t[start]))
+            start = None
+    return best
+
+
 def voyage_metrics(t, own, route, arrival_radius=None) -> dict:
     """The voyage of the own-ship (seed 000, Table X): from the start to the first sample within
     ``arrival_radius`` of the last waypoint, or the whole run when it never gets there.
@@ -422,7 +447,8 @@ def voyage_metrics(t, own, route, arrival_radius=None) -> dict:
     consecutive positions), ``course_min_deg`` / ``course_max_deg`` (the extremes of the continuous course:
     unwrapped, in degrees, shifted so that the first course lies in [0, 360) -- a course that crosses north
     continues below 0 or above 360, so 350 -> 10 deg reads 350 .. 370), ``speed_min_mps`` / ``speed_max_mps``
-    and ``voyage_mean_abs_course_rate_deg_s`` (mean |Δχ|/Δt, None for a single sample)."""
+    and ``voyage_mean_abs_course_rate_deg_s`` (mean |Δχ|/Δt, None for a single sample); over the whole run:
+    ``longest_stop_s`` (:func:`longest_stop` at :data:`STOP_SPEED_MPS`)."""
     t = _check_t(t)
     own = _check_traj(own, "own", t.size)
     route = waypoints(route, "route", 2)
@@ -447,6 +473,7 @@ def voyage_metrics(t, own, route, arrival_radius=None) -> dict:
         "speed_min_mps": float(v[:, 3].min()),
         "speed_max_mps": float(v[:, 3].max()),
         "voyage_mean_abs_course_rate_deg_s": float(np.degrees(np.abs(rate)).mean()) if rate.size else None,
+        "longest_stop_s": longest_stop(t, own[:, 3]),
     }
 
 
@@ -562,7 +589,8 @@ def aggregate(metrics) -> dict:
     per-run p95, ``n_solves`` total); the voyage (:func:`voyage_metrics`): ``arrived_runs`` (runs that reached
     the last waypoint), stats of ``voyage_time_s`` (over the runs that arrived), ``path_length_m``,
     ``voyage_mean_abs_course_rate_deg_s``, ``speed_min_mps`` and ``speed_max_mps``, and ``course_min_deg`` /
-    ``course_max_deg`` / ``speed_min_mps`` / ``speed_max_mps`` stats (run dicts without them are skipped).
+    ``course_max_deg`` / ``speed_min_mps`` / ``speed_max_mps`` / ``longest_stop_s`` stats (run dicts without them
+    are skipped).
     """
     if isinstance(metrics, dict) or not isinstance(metrics, Sequence):
         raise ValueError("metrics must be a list of run_metrics dicts")
@@ -626,5 +654,5 @@ def aggregate(metrics) -> dict:
         "arrived_runs": int(sum(1 for m in metrics if m.get("arrived"))),
         **{key: _stats(m.get(key) for m in metrics)
            for key in ("voyage_time_s", "path_length_m", "course_min_deg", "course_max_deg", "speed_min_mps",
-                       "speed_max_mps", "voyage_mean_abs_course_rate_deg_s")},
+                       "speed_max_mps", "voyage_mean_abs_course_rate_deg_s", "longest_stop_s")},
     }
