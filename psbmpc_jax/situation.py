@@ -32,7 +32,7 @@ from . import checks
 MAX_OBSTACLE_SPEED_MPS = 2.0 * checks.MAX_SPEED_MPS
 
 #: Most prediction scenarios per obstacle.
-MAX_N_PS = 99
+MAX_N_PS = 101
 
 #: Validity verdicts of polygons already checked (content key -> None or the reason); bounded.
 _VALIDITY_CACHE: dict = {}

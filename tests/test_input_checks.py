@@ -68,7 +68,7 @@ def test_obstacle_speed_limit():
     (lambda: own(length=True), r"own_ship.length must be numeric"),
     (lambda: obstacle(cov="big"), r"obstacle.cov must be numeric"),
     (lambda: obstacle(n_ps=True), r"obstacle.n_ps must be an odd integer >= 1"),
-    (lambda: obstacle(n_ps=101), r"obstacle.n_ps must be an odd integer <= 99"),
+    (lambda: obstacle(n_ps=103), r"obstacle.n_ps must be an odd integer <= 101"),
 ])
 def test_bools_strings_and_none_are_refused(make, match):
     with pytest.raises(ValueError, match=match):

@@ -109,8 +109,9 @@ def test_pad_behaviours():
     np.testing.assert_array_equal(pm, mask)
 
 
-class _FakeGpu:
-    platform = "gpu"
+class _FakeDevice:
+    """Not a jax device, on a platform no real device has (the mix check must fire on any host, GPU too)."""
+    platform = "not-a-platform"
 
 
 def test_device_errors():
@@ -118,7 +119,7 @@ def test_device_errors():
     with pytest.raises(ValueError, match="at least one device"):
         solve_sharded(arrays, state, params, samples, CFG, devices=[])
     with pytest.raises(ValueError, match="one platform"):
-        check_devices([jax.local_devices()[0], _FakeGpu()])
+        check_devices([jax.local_devices()[0], _FakeDevice()])
     with pytest.raises(ValueError, match="jax devices"):
         solve_sharded(arrays, state, params, samples, CFG, devices=["cpu:0"])
     with pytest.raises(ValueError, match="distinct"):

@@ -1,0 +1,62 @@
+#!/usr/bin/env bash
+# One prepared GPU measurement session (a lent accelerator for a few minutes): every step is bounded by its own
+# timeout and writes into $OUT, so a slow or failing step costs its own slot only.
+#
+#   OUT=/some/dir bash benchmarks/gpu_session.sh bench     # paper sweep on the GPU, same-host CPU fig5, large
+#                                                          # behaviour tables, batched closed loop
+#   OUT=/some/dir bash benchmarks/gpu_session.sh tests     # the test suite on the GPU (bounded; verbose log)
+#   SMALL=1 OUT=/tmp/x bash benchmarks/gpu_session.sh bench   # dry run at toy sizes (any machine)
+#
+# Wheels of packages missing on the device image (shapely, pyshp) are installed from .whl/ when that folder
+# exists (see /work/.library/device/README.md in the project's workplace; elsewhere pip-install the project).
+set -u
+what=${1:-bench}
+: "${OUT:?set OUT to a writable folder}"
+export PYTHONUNBUFFERED=1 XLA_PYTHON_CLIENT_PREALLOCATE=false
+if [ -d .whl ] && [ -z "${SMALL:-}" ]; then
+  python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade --target /tmp/site .whl/*.whl \
+    && export PYTHONPATH=/tmp/site:$PWD || exit 1
+  python3 -m pip install -q --no-index --no-deps --no-build-isolation -e . >/dev/null 2>&1 \
+    || echo "editable install failed; using PYTHONPATH"
+fi
+pj() { python3 -c 'import sys; from psbmpc_jax.cli import main; sys.exit(main(sys.argv[1:]))' "$@"; }
+{ nvidia-smi --query-gpu=name,memory.total,driver_version,clocks.max.sm --format=csv 2>&1; nproc;
+  python3 -c 'import jax, jaxlib; print(jax.__version__, jaxlib.__version__, jax.devices())' 2>&1; } \
+  | tee "$OUT/host.txt"
+
+if [ "$what" = bench ]; then
+  if [ -n "${SMALL:-}" ]; then
+    R=2; PAPER="--preset smoke"; BIG=39,78; HUGE=117; FIG5="--sweep n_cbs --values 9,39"; RUNS=1,2; DUR=10; DEV=cpu
+  else
+    R=10; PAPER="--preset paper"; BIG=1014,9984,29952; HUGE=99996; FIG5="--preset fig5"; RUNS=1,16,64; DUR=100; DEV=gpu
+  fi
+  # 1. the paper sweep (Figs. 5-10 + fig6s/fig7s) on the GPU; the CPU side of the report comes from the
+  #    committed 2-core runs and from step 2 (same host)
+  timeout -s INT -k 20 210 bash -c "$(declare -f pj); pj bench $PAPER --devices $DEV --reference-budget 0 --repeats $R \
+    --warmup 1 --quiet --out $OUT/bench_gpu_paper.jsonl" 2>&1 | tail -3
+  # 2. fig5 (n_cbs sweep) on this host's CPU cores: the same-host CPU/GPU crossover
+  timeout -s INT -k 10 60 bash -c "$(declare -f pj); pj bench $FIG5 --devices cpu --reference-budget 0 --repeats $R \
+    --warmup 1 --quiet --out $OUT/bench_hostcpu_fig5.jsonl" 2>&1 | tail -3
+  # 3. the largest behaviour tables (1e3 .. 1e5 behaviours, n_ps 5, two obstacles, 13 polygons)
+  #    (1e5 separately: should it fail for memory, the smaller tables are kept)
+  for v in $BIG $HUGE; do
+    timeout -s INT -k 10 80 bash -c "$(declare -f pj); pj bench --sweep n_cbs --values $v --n-ps 5 --devices $DEV \
+      --reference-budget 0 --repeats 5 --warmup 1 --out $OUT/bench_gpu_large_tables.jsonl" 2>&1 | tail -4
+  done
+  # 4. batched closed loop: loop vs vmap over Monte Carlo runs
+  timeout -s INT -k 10 100 python3 benchmarks/bench_sim_batch.py --runs $RUNS --duration $DUR --out "$OUT" 2>&1 | tail -8
+  ls -la "$OUT"
+elif [ "$what" = paper ]; then
+  # the paper sweep alone (with few repeats) and fig5 with grid grounding, then the tests
+  timeout -s INT -k 20 250 bash -c "$(declare -f pj); pj bench --preset paper --devices gpu --reference-budget 0 \
+    --repeats 5 --warmup 1 --quiet --out $OUT/bench_gpu_paper.jsonl" 2>&1 | tail -3
+  timeout -s INT -k 10 45 bash -c "$(declare -f pj); pj bench --preset fig5 --grounding grid --devices gpu \
+    --reference-budget 0 --repeats 5 --warmup 1 --quiet --out $OUT/bench_gpu_fig5_grid.jsonl" 2>&1 | tail -3
+  OUT=$OUT TEST_TIMEOUT=${TEST_TIMEOUT:-240} bash "$0" tests
+elif [ "$what" = tests ]; then
+  timeout "${TEST_TIMEOUT:-300}" python3 -m pytest -v -n "${WORKERS:-12}" --dist loadfile -p no:cacheprovider \
+    --timeout 240 -W ignore > "$OUT/tests_gpu.log" 2>&1
+  echo "pytest exit: $?" | tee -a "$OUT/tests_gpu.log"
+  grep -cE " PASSED" "$OUT/tests_gpu.log"; grep -E " FAILED| ERROR" "$OUT/tests_gpu.log" | head -40
+  tail -5 "$OUT/tests_gpu.log"
+fi
