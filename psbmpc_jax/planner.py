@@ -159,9 +159,22 @@ class Planner:
         samples = standard_normal_table(key, self.config, np.dtype(self.config.dtype))
         return inputs, state, p, samples
 
-    def plan(self, situation: Situation, state: PlannerState | None = None, *, key=None,
+    def plan(self, situation: Situation, state: PlannerState | None = None, *, refine=None, key=None,
              params: Params | None = None) -> tuple[PlanResult, PlannerState]:
-        """Solve once; returns the result and the next planner state (the applied first maneuver)."""
+        """Solve once; returns the result and the next planner state (the applied first maneuver).
+
+        ``refine``: a :class:`~psbmpc_jax.refine.RefineSettings` to refine the grid search's plan with the
+        smooth DOCP (docs/refine.md); ``result.refined`` is then the :class:`~psbmpc_jax.refine.Refinement`
+        (NumPy, trajectory in the user's frame; ``result.refine_time_s`` its wall time) and the next state holds its
+        first control (``result.refined.apply``).  ``None`` (default): the grid search alone, ``result.refined``
+        is None."""
+        if refine is not None:
+            from .refine import RefineSettings
+
+            if not isinstance(refine, RefineSettings):
+                raise ValueError(f"refine must be a psbmpc_jax.refine.RefineSettings or None, got "
+                                 f"{type(refine).__name__}")
+            refine.n_refine(self.config)           # a horizon that does not fit the config: ValueError now
         inputs, state, p, samples = self.prepare(situation, state, key=key, params=params)
         origin = self.origin
         t0 = time.perf_counter()
@@ -170,9 +183,22 @@ class Planner:
         result = unpack(ev, situation, self.behaviours, time.perf_counter() - t0,
                         per_polygon=self.config.grounding_mode == "exact", status=STATUS_NAMES[status],
                         names=self.cost_names, origin=origin)
+        result.refined = result.refine_time_s = None
         if status:                                 # nothing to apply: keep the previous offsets
             return result, state
-        return result, PlannerState((result.u_opt, result.chi_opt))
+        if refine is None:
+            return result, PlannerState((result.u_opt, result.chi_opt))
+        from .refine import refine as run_refine
+
+        t0 = time.perf_counter()
+        ref = jax.device_get(run_refine(inputs, plan, state, p, samples, self.config, refine, self.terms,
+                                        evaluation=ev))
+        result.refine_time_s = time.perf_counter() - t0
+        ref = ref._replace(trajectory=np.asarray(ref.trajectory, float) + np.r_[origin, 0.0, 0.0],
+                           costs={k: float(v) for k, v in ref.costs.items()})
+        result.refined = ref
+        u, chi = (float(v) for v in np.asarray(ref.apply, float))
+        return result, PlannerState((min(max(u, 0.0), 1.0), min(max(chi, -np.pi), np.pi)))
 
 
 __all__ = ["Planner", "PlannerState", "PlanResult", "COST_TERMS", "RECENTRE_DISTANCE", "check_dtype"]

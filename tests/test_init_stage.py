@@ -127,3 +127,29 @@ def test_weights_do_not_recompile_and_bad_settings_are_refused():
         init_stage(STATE0, ROUTE[:1], HEAD_ON, np.array([1.0, 0.0]), chart, settings=SETTINGS)
     with pytest.raises(ValueError, match="targets"):
         init_stage(STATE0, ROUTE, HEAD_ON[0], np.array([1.0, 0.0]), chart, settings=SETTINGS)
+
+
+def test_active_segment_is_an_argument_and_first_cost_is_the_first_inner_evaluation():
+    """``segment`` equals slicing the route (Ψ and offsets exactly, segments shifted), one compilation for
+    every segment; ``first_cost`` is Algorithm 2's totals at τ₀; a bad segment is refused."""
+    from psbmpc_jax.smooth.init_stage import behaviour_costs
+
+    route = np.array([[-50.0, 0.0], [0.0, 0.0], [40.0, 0.0], [40.0, 60.0]])
+    chart = chart_of([])
+    a = init_stage(STATE0, route, HEAD_ON, np.array([1.0, 0.0]), chart, settings=SETTINGS, segment=1)
+    size = _init_stage_jit._cache_size()
+    c = init_stage(STATE0, route, HEAD_ON, np.array([1.0, 0.0]), chart, settings=SETTINGS, segment=0)
+    assert _init_stage_jit._cache_size() == size                     # the segment is a value
+    b = init_stage(STATE0, route[1:], HEAD_ON, np.array([1.0, 0.0]), chart, settings=SETTINGS)
+    np.testing.assert_array_equal(np.asarray(a.psi), np.asarray(b.psi))
+    np.testing.assert_array_equal(np.asarray(a.controls), np.asarray(b.controls))
+    np.testing.assert_array_equal(np.asarray(a.segment), np.asarray(b.segment) + 1)
+    assert int(a.segment[0]) == 1 and int(c.segment[0]) == 0
+    total, *_ = behaviour_costs(jnp.asarray(STATE0), jnp.asarray(1, jnp.int32), jnp.asarray(HEAD_ON),
+                                jnp.asarray([1.0, 0.0]), route_path(jnp.asarray(route)), chart, SmoothWeights(),
+                                MODEL, SETTINGS)
+    np.testing.assert_allclose(np.asarray(a.first_cost), np.asarray(total), rtol=1e-12, atol=1e-12)
+    assert float(a.cost[0]) == float(np.min(np.asarray(a.first_cost)))
+    for bad in (-1, 3, 1.0, True, np.array([1])):
+        with pytest.raises(ValueError, match="segment"):
+            init_stage(STATE0, route, HEAD_ON, np.array([1.0, 0.0]), chart, settings=SETTINGS, segment=bad)

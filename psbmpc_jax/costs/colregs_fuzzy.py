@@ -27,6 +27,12 @@ Algorithm (the documented choices C-000-2, -3, -4, -5, -15)::
 with sig(z; a₁, a₂) = 1 / (1 + exp(−a₂ (z − a₁))), max_ε(a, b) = (a + b + √((a − b)² + ε)) / 2,
 min_ε(a, b) = −max_ε(−a, −b) and clip(v) = min(max(v, 0), 1) (crisp).
 
+Evaluation (speed; the same μ to float rounding): :func:`fis_colregs` sums the CoG by :func:`defuzzify_fast` —
+the linear parts of max_ε from precomputed moments, the square roots explicitly at the ~40 % of grid points
+where T or F is not negligible and by a Taylor series elsewhere, with a hand-written JVP — and computes the
+geometry with a vectorised atan2 (:func:`atan2_poly`) and a ``ceil``-based :func:`wrap_to_pi`;
+:func:`defuzzify` is the literal definition.
+
 Smoothness: μ is smooth in (ΔCOG, RB, d) except where a crisp clip is active (rule strengths at 0 or 1),
 and the inputs have two kinks/jumps of their own: |·| in ΔCOG at 0 and π (the membership functions are flat
 there) and the jump of RB at ±π (dead astern: SB(−180°) ≈ 0 but SB(180°) ≈ 1).  The jump is accepted and
@@ -35,12 +41,14 @@ documented; finite-difference checks must stay away from it.
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax import lax
 
 from ..numerics import safe_sqrt
 
@@ -210,7 +218,8 @@ def output_grid(n_y: int, dtype=None):
 def defuzzify(r_t, r_f, eps=DEFAULT_EPS, n_y: int = DEFAULT_N_Y):
     """Centre of gravity (rectangle rule on ``n_y`` points of [0, 1]) of the aggregate
     max_ε(r_T·T(y), r_F·F(y)) (product implication, C-000-15).  An all-zero aggregate (possible only with
-    ε = 0 and the literal completion) gives 0.5, the CoG of a flat output."""
+    ε = 0 and the literal completion) gives 0.5, the CoG of a flat output.  Evaluated literally (every grid
+    point); :func:`defuzzify_fast` computes the same value faster for strengths in [0, 1]."""
     check_n_y(n_y)
     r_t, r_f = jnp.broadcast_arrays(jnp.asarray(r_t), jnp.asarray(r_f))
     y = output_grid(n_y, jnp.result_type(r_t.dtype, float))
@@ -221,6 +230,127 @@ def defuzzify(r_t, r_f, eps=DEFAULT_EPS, n_y: int = DEFAULT_N_Y):
     den = jnp.sum(agg, axis=-1)
     pos = den > 0
     return jnp.where(pos, num / jnp.where(pos, den, 1.0), 0.5)
+
+
+#: :func:`defuzzify_fast`'s split evaluation: grid points where both output memberships are <= FAST_TAU are the
+#: "middle" (summed by a three-term Taylor series of the square root about sqrt(eps)); it is used when
+#: eps >= FAST_EPS_MIN, where the series' relative error (TAU^2/eps)^3/16 is below float64 rounding.
+FAST_TAU = 1e-7
+FAST_EPS_MIN = 1e-9
+
+
+@functools.lru_cache(maxsize=None)
+def _fast_tables(n_y: int):
+    """Float64 constants of the split evaluation for ``n_y`` grid points: the outer points (y, T, F) and the
+    moment sums of the linear parts and of the middle points' Taylor series."""
+    y = np.linspace(0.0, 1.0, n_y)
+    t = 1.0 / (1.0 + np.exp(-MU_SLOPE * (y - MU_TRUE_CENTRE)))
+    f = 1.0 / (1.0 + np.exp(MU_SLOPE * (y - MU_FALSE_CENTRE)))
+    mid = np.maximum(t, f) <= FAST_TAU
+    out = ~mid
+    tm, fm = t[mid], f[mid]
+    powers = (np.ones_like(tm), tm * tm, tm * fm, fm * fm, tm ** 4, tm ** 3 * fm, tm * tm * fm * fm, tm * fm ** 3,
+              fm ** 4)
+    moments = tuple(tuple(float(np.sum(w * v)) for v in powers) for w in (np.ones_like(tm), y[mid]))
+    linear = (float(t.sum()), float(f.sum()), float((y * t).sum()), float((y * f).sum()))
+    return tuple(zip(y[out].tolist(), t[out].tolist(), f[out].tolist())), moments, linear
+
+
+def _split_core(r_t, r_f, eps, n_y: int, derivs: bool):
+    """The CoG of :func:`defuzzify` for eps >= FAST_EPS_MIN, in one elementwise pass; with ``derivs`` also
+    its partial derivatives with respect to (r_T, r_F, ε), accumulated in the same pass.
+
+    With a_n = r_T T(y_n), b_n = r_F F(y_n): max_ε(a, b) = (a + b + √((a − b)² + ε))/2, so both sums are
+    linear in (r_T, r_F) (precomputed moments of T and F) plus S_w = Σ w_n √(x_n² + ε), x_n = a_n − b_n,
+    w ∈ {1, y}.  S_w is summed explicitly over the outer grid points (unrolled: one fused loop over the
+    pairs, ~78 square roots instead of 201 for N_y = 201) and by √ε (1 + u/2 − u²/8), u = x²/ε, over the
+    middle points (|x_n| <= FAST_TAU): there u <= 1e-5, and the omitted term u³/16 is below float64
+    rounding.  The series' sums are polynomials in (r_T, r_F) with precomputed moments."""
+    outer, moments, linear = _fast_tables(n_y)
+    dt = r_t.dtype
+    c = lambda v: jnp.asarray(v, dt)  # noqa: E731
+    zero = jnp.zeros_like(r_t)
+    s0 = s1 = zero
+    if derivs:
+        ga0 = ga1 = gb0 = gb1 = ge0 = ge1 = zero
+    for y_n, t_n, f_n in outer:
+        x = c(t_n) * r_t - c(f_n) * r_f
+        if derivs:
+            inv = lax.rsqrt(x * x + eps)
+            sq = (x * x + eps) * inv
+            xi = x * inv
+            ga0, ga1 = ga0 + c(t_n) * xi, ga1 + c(y_n * t_n) * xi
+            gb0, gb1 = gb0 - c(f_n) * xi, gb1 - c(y_n * f_n) * xi
+            ge0, ge1 = ge0 + inv, ge1 + c(y_n) * inv
+        else:
+            sq = jnp.sqrt(x * x + eps)
+        s0 = s0 + sq
+        s1 = s1 + c(y_n) * sq
+    a, b = r_t, r_f
+    a2, b2, ab = a * a, b * b, a * b
+    se = jnp.sqrt(eps)
+
+    def middle(m):
+        m = [c(v) for v in m]
+        x2 = a2 * m[1] - 2.0 * ab * m[2] + b2 * m[3]
+        x4 = a2 * a2 * m[4] - 4.0 * a2 * ab * m[5] + 6.0 * a2 * b2 * m[6] - 4.0 * ab * b2 * m[7] + b2 * b2 * m[8]
+        val = se * m[0] + x2 / (2.0 * se) - x4 / (8.0 * eps * se)
+        if not derivs:
+            return val, None
+        x2a = 2.0 * (a * m[1] - b * m[2])
+        x2b = 2.0 * (b * m[3] - a * m[2])
+        x4a = 4.0 * (a2 * a * m[4] - 3.0 * a2 * b * m[5] + 3.0 * a * b2 * m[6] - b2 * b * m[7])
+        x4b = 4.0 * (b2 * b * m[8] - 3.0 * b2 * a * m[7] + 3.0 * b * a2 * m[6] - a2 * a * m[5])
+        va = x2a / (2.0 * se) - x4a / (8.0 * eps * se)
+        vb = x2b / (2.0 * se) - x4b / (8.0 * eps * se)
+        ve = m[0] / (2.0 * se) - x2 / (4.0 * eps * se) + 3.0 * x4 / (16.0 * eps * eps * se)
+        return val, (va, vb, ve)
+
+    (m0, d0), (m1, d1) = middle(moments[0]), middle(moments[1])
+    s0, s1 = s0 + m0, s1 + m1
+    t_sum, f_sum, yt_sum, yf_sum = (c(v) for v in linear)
+    den = a * t_sum + b * f_sum + s0          # twice the denominator: >= sqrt(eps) N_y > 0
+    mu = (a * yt_sum + b * yf_sum + s1) / den
+    if not derivs:
+        return mu
+    # d/dv of the explicit sums of sqrt((a t - b f)^2 + eps): x t / sq, -x f / sq and 1 / (2 sq)
+    d_a = ((yt_sum + ga1 + d1[0]) - mu * (t_sum + ga0 + d0[0])) / den
+    d_b = ((yf_sum + gb1 + d1[1]) - mu * (f_sum + gb0 + d0[1])) / den
+    d_e = ((0.5 * ge1 + d1[2]) - mu * (0.5 * ge0 + d0[2])) / den
+    return mu, d_a, d_b, d_e
+
+
+@functools.partial(jax.custom_jvp, nondiff_argnums=(3,))
+def _defuzzify_split(r_t, r_f, eps, n_y: int):
+    """:func:`_split_core`'s CoG, with a hand-written JVP: the partial derivatives are accumulated in the same
+    fused pass as the value, so reverse mode only multiplies by them (autodiff through the ~80 unrolled
+    terms would emit hundreds of small kernels)."""
+    return _split_core(r_t, r_f, eps, n_y, derivs=False)
+
+
+@_defuzzify_split.defjvp
+def _defuzzify_split_jvp(n_y, primals, tangents):
+    r_t, r_f, eps = primals
+    mu, d_a, d_b, d_e = _split_core(r_t, r_f, eps, n_y, derivs=True)
+    t_a, t_b, t_e = tangents
+    return mu, d_a * t_a + d_b * t_b + d_e * t_e
+
+
+def defuzzify_fast(r_t, r_f, eps=DEFAULT_EPS, n_y: int = DEFAULT_N_Y):
+    """:func:`defuzzify` for rule strengths ``r_t, r_f`` in [0, 1] (as :func:`rule_strengths` clips them), to
+    float rounding, faster: by :func:`_defuzzify_split` when ε >= :data:`FAST_EPS_MIN` (a traced ε chooses at
+    run time with ``lax.cond``; the choice does not depend on the strengths, so it stays a branch under
+    ``vmap`` over them), else literally.  Strengths outside [0, 1] may lose accuracy: use :func:`defuzzify`."""
+    check_n_y(n_y)
+    r_t, r_f = jnp.broadcast_arrays(jnp.asarray(r_t), jnp.asarray(r_f))
+    dt = jnp.result_type(r_t.dtype, float)
+    r_t, r_f = r_t.astype(dt), r_f.astype(dt)
+    e = concrete_float(eps)
+    if e is not None:
+        return _defuzzify_split(r_t, r_f, e, n_y) if e >= FAST_EPS_MIN else defuzzify(r_t, r_f, e, n_y)
+    eps = jnp.asarray(eps, dt)
+    return lax.cond(jnp.all(eps >= FAST_EPS_MIN), lambda: _defuzzify_split(r_t, r_f, eps, n_y),
+                    lambda: defuzzify(r_t, r_f, eps, n_y))
 
 
 def fis_colregs(delta_cog, rb, d, *, d_cl=DEFAULT_D_CL, e_cl=DEFAULT_E_CL, eps=DEFAULT_EPS,
@@ -240,20 +370,72 @@ def fis_colregs(delta_cog, rb, d, *, d_cl=DEFAULT_D_CL, e_cl=DEFAULT_E_CL, eps=D
     check_choice("angles", angles, ANGLE_UNITS)
     scale = 1.0 if angles == "deg" else RAD2DEG
     dcog, rbv, dv = jnp.broadcast_arrays(jnp.asarray(delta_cog) * scale, jnp.asarray(rb) * scale, jnp.asarray(d))
-    rs = rule_strengths(memberships(dcog, rbv, dv, d_cl, e_cl), eps, completion)
-    return defuzzify(rs.r_T, rs.r_F, eps, n_y)
+    return fis_degrees(dcog, rbv, dv, d_cl, e_cl, eps, n_y, completion)
+
+
+def fis_degrees(dcog_deg, rb_deg, d, d_cl=DEFAULT_D_CL, e_cl=DEFAULT_E_CL, eps=DEFAULT_EPS, n_y: int = DEFAULT_N_Y,
+                completion: str = "default_false"):
+    """μ of FIS_colregs from ΔCOG and RB in degrees and d [m] (same shape; no validation): memberships →
+    rule strengths → CoG.  The CoG is :func:`_defuzzify_split` when ε >= :data:`FAST_EPS_MIN`, else
+    :func:`defuzzify` (equal to float rounding).  A traced ε chooses at run time with one ``lax.cond`` around
+    the whole per-pair computation: besides choosing, it keeps XLA:CPU from splitting the ~80 unrolled square
+    roots into one kernel each (which it does when their sum feeds a reduction in the same computation, and
+    which costs ~10x)."""
+    def run(fast: bool):
+        rs = rule_strengths(memberships(dcog_deg, rb_deg, d, d_cl, e_cl), eps, completion)
+        return _defuzzify_split(rs.r_T, rs.r_F, eps, n_y) if fast else defuzzify(rs.r_T, rs.r_F, eps, n_y)
+
+    e = concrete_float(eps)
+    if e is not None:
+        return run(e >= FAST_EPS_MIN)
+    dt = jnp.result_type(dcog_deg, float)
+    return lax.cond(jnp.all(jnp.asarray(eps, dt) >= FAST_EPS_MIN), lambda: run(True), lambda: run(False))
 
 
 # ------------------------------------------------------------------------------------------ geometry
 def wrap_to_pi(a):
-    """Wrap angles to (−π, π] (+π stays +π: a target dead astern counts as starboard, RB = +180°)."""
-    return math.pi - jnp.mod(math.pi - a, 2.0 * math.pi)
+    """Wrap angles to (−π, π] (+π stays +π: a target dead astern counts as starboard, RB = +180°).
+
+    a − 2π·ceil((a − π)/2π) (exact for |a| <= π, where the multiple is 0), then a one-step correction of the
+    rounding at the ends; no ``jnp.mod`` (a slow scalar ``fmod`` on XLA:CPU)."""
+    two_pi = 2.0 * math.pi
+    w = a - two_pi * jnp.ceil((a - math.pi) / two_pi)
+    return jnp.where(w > math.pi, w - two_pi, jnp.where(w <= -math.pi, w + two_pi, w))
+
+
+# Cephes atan (double precision, |error| <= 1 ulp after the octant reduction): atan(t) = t + t z P(z)/Q(z),
+# z = t², for t in [0, 0.66]; atan(a) = π/4 + atan((a − 1)/(a + 1)) for a in (0.66, 1].
+_ATAN_P = (-8.750608600031904122785e-1, -1.615753718733365076637e1, -7.500855792314704667340e1,
+           -1.228866684490136173410e2, -6.485021904942025371773e1)
+_ATAN_Q = (2.485846490142306297962e1, 1.650270098316988542046e2, 4.328810604912902668951e2,
+           4.853903996359136964868e2, 1.945506571482613964425e2)
+_MOREBITS = 6.123233995736765886130e-17        # π/2 − float64(π/2)
+
+
+def atan2_poly(y, x):
+    """atan2(y, x) ∈ [−π, π] by octant reduction and the Cephes rational approximation (within 1-2 ulp of
+    ``jnp.arctan2`` in float64 and float32; smooth away from the negative x-axis; ``atan2(±0, x < 0) = ±π``
+    as IEEE).  Elementwise arithmetic only, so XLA:CPU vectorises it (``jnp.arctan2`` is a scalar call there)."""
+    ax, ay = jnp.abs(x), jnp.abs(y)
+    swap = ay > ax
+    num, den = jnp.where(swap, ax, ay), jnp.where(swap, ay, ax)
+    a = num / jnp.where(den > 0, den, 1.0)                                   # [0, 1]
+    big = a > 0.66
+    t = jnp.where(big, (a - 1.0) / (a + 1.0), a)
+    z = t * t
+    p = (((_ATAN_P[0] * z + _ATAN_P[1]) * z + _ATAN_P[2]) * z + _ATAN_P[3]) * z + _ATAN_P[4]
+    q = ((((z + _ATAN_Q[0]) * z + _ATAN_Q[1]) * z + _ATAN_Q[2]) * z + _ATAN_Q[3]) * z + _ATAN_Q[4]
+    r = t + t * (z * p / q)
+    r = jnp.where(big, r + (math.pi / 4 + 0.5 * _MOREBITS), r)
+    r = jnp.where(swap, (math.pi / 2 + _MOREBITS) - r, r)
+    r = jnp.where(jnp.signbit(x), (math.pi + 2.0 * _MOREBITS) - r, r)
+    return jnp.where(jnp.signbit(y), -r, r)
 
 
 def safe_atan2(y, x):
-    """atan2 with a finite gradient at (0, 0), where it returns 0."""
+    """atan2 with a finite gradient at (0, 0), where it returns 0 (:func:`atan2_poly` elsewhere)."""
     zero = (x == 0) & (y == 0)
-    return jnp.where(zero, 0.0, jnp.arctan2(jnp.where(zero, 0.0, y), jnp.where(zero, 1.0, x)))
+    return jnp.where(zero, 0.0, atan2_poly(jnp.where(zero, 0.0, y), jnp.where(zero, 1.0, x)))
 
 
 def encounter_inputs_xy(own_x, own_y, own_chi, tgt_x, tgt_y, tgt_chi):
@@ -290,6 +472,7 @@ def fis_colregs_states(own_state, target_state, **fis_kwargs):
 __all__ = [
     "DEFAULT_EPS", "DEFAULT_N_Y", "DEFAULT_D_CL", "DEFAULT_E_CL", "COMPLETIONS", "Memberships", "RuleStrengths",
     "sig", "smooth_max", "smooth_min", "clip01", "memberships", "rule_strengths", "output_grid", "defuzzify",
-    "fis_colregs", "wrap_to_pi", "safe_atan2", "encounter_inputs_xy", "encounter_inputs", "fis_colregs_states",
+    "defuzzify_fast", "fis_degrees", "FAST_TAU", "FAST_EPS_MIN", "fis_colregs", "wrap_to_pi", "atan2_poly",
+    "safe_atan2", "encounter_inputs_xy", "encounter_inputs", "fis_colregs_states",
     "check_fis_params", "check_param", "check_choice", "check_n_y", "concrete_float",
 ]

@@ -74,7 +74,8 @@ def adhoc_risk(d, t, d_safe, p=DEFAULT_P, q=DEFAULT_Q, *, crisp: bool = False):
     check_param("p", p, lo=0.0)
     check_param("q", q, lo=0.0)
     d_eff = jnp.maximum(d, RISK_D_FLOOR * d_safe)
-    r = jnp.abs(t) ** (-p) * (d_safe / d_eff) ** q
+    # (d_safe / d_eff)^q as exp(q log(.)): the base is > 0, and a float power is a slow scalar call on XLA:CPU
+    r = jnp.abs(t) ** (-p) * jnp.exp(q * jnp.log(d_safe / d_eff))
     if crisp:
         return jnp.where(d <= d_safe, r, 0.0)
     return r

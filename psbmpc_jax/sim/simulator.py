@@ -44,7 +44,7 @@ from ..situation import Obstacle, OwnShip, Situation
 from ..scenario import Scenario, route_geometry
 from . import colav as colav_mod
 from . import metrics as metrics_mod
-from .colav import COST_NAMES, INFO_NAMES, POINT_HULL_M, _batched_solve, _costs_row, _Solver  # noqa: F401
+from .colav import COST_NAMES, INFO_NAMES, POINT_HULL_M  # noqa: F401  (COST_NAMES: re-exported for readers of the results)
 from .tracker import TrackerBank
 from .vessel import extend_route, kinematic_step, los_course, nominal_speed, pad_routes
 

@@ -1,5 +1,6 @@
 """The MPC stage of Smooth-SBMPC (seed 000, SPEC_SEEDS §1.6): the DOCP (27) over per-step offsets, and one
-complete Smooth-SBMPC step (initialisation stage → corridor → DOCP → safeguard).
+complete Smooth-SBMPC step (initialisation stage → corridor → DOCP from several starts → safeguard), jitted as
+one computation.
 
 Decision variable: ``u [N_mpc, 2]`` = (U_m, χ_m) per step, single shooting (the states are the rollout of the
 kinematic model (13) under route LOS, so the dynamics hold exactly), box −90° ≤ χ_m ≤ 90°, 0.1 ≤ U_m ≤ 1.
@@ -9,8 +10,11 @@ kinematic model (13) under route LOS, so the dynamics hold exactly), box −90°
 subject to the terminal condition x_{N_mpc} = Ψ_{N_mpc} (``terminal="full"``: x, y, χ (wrapped), U;
 ``"position"``: x, y; ``"soft"``: a quadratic penalty instead) and the cross-track corridor of Ψ (Alg. 3,
 C-000-8) at steps 1..N_mpc.  Solved by :func:`psbmpc_jax.nlp.solve_docp` (augmented Lagrangian, L-BFGS on a box
-map), warm-started from the init stage's offsets, with the safeguard: a result worse or less feasible than the
-warm start is replaced by the warm start.
+map, settings :data:`DOCP_SOLVER` unless given) from the warm start Ψ (the init stage's offsets) and, with
+``n_starts > 1``, also from the ``n_starts − 1`` best constant behaviours of the init stage's first inner step
+(:func:`psbmpc_jax.nlp.solve_multistart`, ``batch="map"`` or ``"vmap"``); the best feasible result
+(:func:`psbmpc_jax.nlp.best_index`) then passes the safeguard: a result worse or less feasible than the warm
+start Ψ is replaced by Ψ.
 
 **χ_d inside the DOCP (our reading, see docs/smooth_sbmpc.md):** route LOS, the same guidance as the init
 stage, rather than LOS on the segment p(τ₀) → p_T (SPEC choice C-000-7).  With the same guidance the warm
@@ -29,20 +33,34 @@ import jax.numpy as jnp
 
 from ..costs.manoeuvring import gamma_sequence
 from ..costs.sbmpc import sbmpc_costs
-from ..nlp import SolverResult, SolverSettings, safeguard, solve_docp
+from ..nlp import BATCH_MODES, SolverResult, SolverSettings, safeguard, solve_docp, solve_multistart
 from ..numerics import wrap_angle
-from .corridor import Corridor, cross_track_corridor, cross_track_residuals
-from .init_stage import (InitResult, ShipModel, SmoothSettings, SmoothWeights, gamma_weights, init_stage, pair_kwargs,
-                         rollout_controls, route_path, target_predictions)
+from .corridor import Corridor, corridor_kernel, cross_track_residuals
+from .init_stage import (InitResult, ShipModel, SmoothSettings, SmoothWeights, init_stage_traced, behaviour_table,
+                         check_segment, gamma_weights, pair_kwargs, rollout_controls, route_path, target_predictions)
+from .land_hit import as_chart
 
 #: Box of the DOCP's offsets: (U_m, χ_m) — the extremes of the behaviour sets (26a), (26b).
 LOWER = (0.1, -math.pi / 2)
 UPPER = (1.0, math.pi / 2)
 
+#: Solver settings of the DOCP when none are given: the library defaults (max_outer 20, max_inner 50, L-BFGS on
+#: the sin box map, tol 1e-3, rel_tol 1e-6, mu0 1, growth 5).  Measured against alternatives on 12 situations of
+#: the paper-scale channel (``benchmarks/bench_smooth.py``'s geometry, float32, 4 starts each; docs/smooth_sbmpc.md
+#: "Solver settings"): every faster variant found (mu0 = 100, max_outer 10-12, max_inner 25-30, growth 10) saved
+#: 10-30 % of the solve time but ended 3-12x farther above the best cost found (mean relative gap of the
+#: Ψ start 4e-2 … 1.2e-1 against 1.1e-2 … 1.5e-2); rel_tol 1e-4 … 1e-5 and grad_tol 1e-4 … 1e-3 change
+#: nothing in float32 (the inner loops end on the line search, not on the gradient).
+DOCP_SOLVER = SolverSettings()
+
+#: The most starts of the multi-start: Ψ plus every one of the 39 behaviours.
+MAX_STARTS = 40
+
 
 class DocpArgs(NamedTuple):
     """Traced data of one DOCP: start state ``[4]``, route ``[W, 2]``, targets ``[I, 4]``, last offsets ``[2]``,
-    the terminal state Ψ_{N_mpc} ``[4]``, the corridor of Ψ at steps 0..N_mpc, weights and model."""
+    the terminal state Ψ_{N_mpc} ``[4]``, the corridor of Ψ at steps 0..N_mpc, weights, model and the active
+    route segment at τ₀ (int32 scalar)."""
 
     state0: jax.Array
     route: jax.Array
@@ -52,14 +70,23 @@ class DocpArgs(NamedTuple):
     corridor: Corridor
     weights: SmoothWeights
     model: ShipModel
+    segment: jax.Array = 0
 
 
 def _states(u, a: DocpArgs, settings: SmoothSettings):
-    return rollout_controls(a.state0, route_path(a.route), u, a.model, settings.dt)
+    return rollout_controls(a.state0, route_path(a.route), _as_state_dtype(u, a), a.model, settings.dt,
+                            z0=a.segment)
+
+
+def _as_state_dtype(u, a: DocpArgs):
+    """``u`` in the problem's dtype (that of ``a.state0``): with 64-bit JAX on, the solver's line search can
+    hand a float32 problem float64 iterates, which a float32 rollout's scan carry would refuse."""
+    return jnp.asarray(u).astype(jnp.asarray(a.state0).dtype)
 
 
 def docp_cost(u, a: DocpArgs, settings: SmoothSettings):
     """J_d of (27) (plus the soft terminal penalty when ``settings.terminal == "soft"``)."""
+    u = _as_state_dtype(u, a)
     states = _states(u, a, settings)
     t = jnp.arange(states.shape[0], dtype=states.dtype) * settings.dt
     w = a.weights
@@ -103,9 +130,21 @@ def bounds(n: int, dtype):
 
 
 class SmoothStep(NamedTuple):
-    """One Smooth-SBMPC step: the offsets to apply now ``[2]`` (U_m, χ_m), the refined sequence ``[N_mpc, 2]``,
-    its cost and constraint violation, whether the safeguard fell back to the warm start, the solver's result,
-    the init stage's result (Ψ, offsets) and the corridor."""
+    """One Smooth-SBMPC step.
+
+    Attributes:
+        apply: the offsets to apply now ``[2]`` (U_m, χ_m).
+        controls: the kept sequence ``[N_mpc, 2]`` (refined, or the warm start Ψ when ``used_warm``).
+        cost: its J_d.  violation: its max constraint violation (terminal, corridor, box).
+        used_warm: the safeguard fell back to the warm start Ψ.
+        solver: the :class:`~psbmpc_jax.nlp.SolverResult` of the best start.
+        init: the init stage's :class:`InitResult` (Ψ, offsets, …).  corridor: the corridor of Ψ, steps 0..N_mpc.
+        warm_cost: J_d of the warm start Ψ.
+        starts: the starts ``[S, N_mpc, 2]`` (S = n_starts; row 0 is Ψ's offsets, then constant behaviours).
+        start_cost, start_violation: J_d and violation of each start's result ``[S]``.
+        best: index of the start whose result went into the safeguard (int32).
+        iterations: inner solver iterations summed over the starts (int32).
+    """
 
     apply: jax.Array
     controls: jax.Array
@@ -116,27 +155,153 @@ class SmoothStep(NamedTuple):
     init: InitResult
     corridor: Corridor
     warm_cost: jax.Array
+    starts: jax.Array
+    start_cost: jax.Array
+    start_violation: jax.Array
+    best: jax.Array
+    iterations: jax.Array
+
+
+def warm_starts(init: InitResult, n_starts: int, n: int):
+    """The starts ``[n_starts, n, 2]`` of the multi-start: Ψ's first ``n`` offsets, then the constant sequences
+    of the ``n_starts − 1`` behaviours with the lowest total cost at τ₀ (``init.first_cost``; ties: enumeration
+    order).  A behaviour whose constant sequence equals Ψ's (Ψ held it throughout) is ranked last, so it does
+    not duplicate start 0."""
+    warm = init.controls[:n]
+    if n_starts == 1:
+        return warm[None]
+    table = behaviour_table(warm.dtype)
+    same = jnp.all(table[:, None, :] == warm[None], axis=(1, 2))
+    key = jnp.where(same, jnp.inf, init.first_cost)
+    order = jnp.argsort(key, stable=True)[: n_starts - 1]
+    const = jnp.broadcast_to(table[order][:, None, :], (n_starts - 1, n, 2))
+    return jnp.concatenate([warm[None], const], axis=0)
+
+
+def cast_tree(tree, dtype):
+    """Every floating leaf (Python numbers included) as a strongly typed array of ``dtype``."""
+    def one(v):
+        v = jnp.asarray(v)
+        return v.astype(dtype) if jnp.issubdtype(v.dtype, jnp.floating) else v
+    return jax.tree.map(one, tree)
+
+
+class Prepared(NamedTuple):
+    """The first part of a step (:func:`prepare_step`): the init stage's result, the corridor of Ψ, the DOCP's
+    data and its starts ``[S, N_mpc, 2]``."""
+
+    init: InitResult
+    corridor: Corridor
+    args: DocpArgs
+    starts: jax.Array
+
+
+def prepare_step(state0, route, targets, last, segment, land, buffered_land, weights, model, *,
+                 settings: SmoothSettings, n_starts: int) -> Prepared:
+    """Traceable first part of a step: Alg. 1 (init stage), Alg. 3 (corridor of Ψ), the DOCP's data and starts
+    (no validation; every array already of one float dtype)."""
+    init = init_stage_traced(state0, route, targets, last, land, weights, model, settings, segment)
+    n = settings.n_mpc
+    dtype = init.psi.dtype
+    corridor = corridor_kernel(init.psi[:n + 2, :2], buffered_land, jnp.asarray(settings.corridor_half_width, dtype),
+                               heading=state0[2])
+    corridor = jax.tree.map(lambda a: a[:n + 1], corridor)
+    args = DocpArgs(init.psi[0], route, targets, last, init.psi[n], corridor, weights, model,
+                    jnp.asarray(segment, jnp.int32))
+    return Prepared(init, corridor, args, warm_starts(init, n_starts, n))
+
+
+def solve_step(prep: Prepared, solver: SolverSettings, *, settings: SmoothSettings, batch: str) -> SmoothStep:
+    """Traceable second part of a step: the DOCP from every start (one start: :func:`solve_docp`; several:
+    :func:`solve_multistart` with ``batch``), the best start (:func:`psbmpc_jax.nlp.best_index`), the safeguard
+    against the warm start Ψ (row 0 of the starts)."""
+    f, eq, ineq = problem(settings)
+    args, starts = prep.args, prep.starts
+    n_starts, n = starts.shape[0], starts.shape[1]
+    lower, upper = bounds(n, starts.dtype)
+    warm = starts[0]
+    if n_starts == 1:
+        result = solve_docp(f, warm, lower=lower, upper=upper, eq=eq, ineq=ineq, settings=solver, args=args)
+        best = jnp.asarray(0, jnp.int32)
+        all_f, all_v, iters = result.f[None], result.max_violation[None], result.inner_iterations
+    else:
+        multi = solve_multistart(f, starts, lower=lower, upper=upper, eq=eq, ineq=ineq, settings=solver, args=args,
+                                 batch=batch)
+        best = multi.best
+        result = multi.best_result()
+        all_f, all_v = multi.results.f, multi.results.max_violation
+        iters = jnp.sum(multi.results.inner_iterations).astype(jnp.int32)
+    kept = safeguard(result, warm, f, lower=lower, upper=upper, eq=eq, ineq=ineq, args=args, tol=solver.tol)
+    return SmoothStep(kept.u[0], kept.u, kept.f, kept.max_violation, kept.used_warm, result, prep.init,
+                      prep.corridor, f(warm, args), starts, all_f, all_v, best, iters)
+
+
+def step_traced(state0, route, targets, last, segment, land, buffered_land, weights, model, solver, *,
+                settings: SmoothSettings, n_starts: int, batch: str) -> SmoothStep:
+    """Traceable Smooth-SBMPC step (no validation; every array already of one float dtype)."""
+    prep = prepare_step(state0, route, targets, last, segment, land, buffered_land, weights, model,
+                        settings=settings, n_starts=n_starts)
+    return solve_step(prep, solver, settings=settings, batch=batch)
+
+
+_step_jit = jax.jit(step_traced, static_argnames=("settings", "n_starts", "batch"))
+
+
+def check_step_options(settings, solver, n_starts, batch):
+    """Validate the static options of a step (``ValueError`` naming the field)."""
+    if not isinstance(settings, SmoothSettings):
+        raise ValueError(f"settings must be a SmoothSettings, got {type(settings).__name__}")
+    if not isinstance(solver, SolverSettings):
+        raise ValueError(f"solver must be a psbmpc_jax.nlp.SolverSettings, got {type(solver).__name__}")
+    if isinstance(n_starts, bool) or not isinstance(n_starts, int) or not 1 <= n_starts <= MAX_STARTS:
+        raise ValueError(f"n_starts must be an integer in [1, {MAX_STARTS}] (Ψ plus up to 39 behaviours), "
+                         f"got {n_starts!r}")
+    if batch not in BATCH_MODES:
+        raise ValueError(f"batch must be one of {BATCH_MODES}, got {batch!r}")
+
+
+def check_step_inputs(state0, route, targets, last, dtype=None):
+    """``(state0 [4], route [W, 2], targets [I, 4], last [2])`` as arrays of one float dtype (``dtype``, else
+    that of ``state0``, float32 for integers), shapes and finiteness checked (``ValueError`` naming the field)."""
+    if dtype is None:
+        s = jnp.asarray(state0)
+        dtype = s.dtype if jnp.issubdtype(s.dtype, jnp.floating) else jnp.float32
+    out = []
+    for name, value, shape, ok in (("state0", state0, "[4] (x, y, chi, U)", lambda s: s == (4,)),
+                                   ("route", route, "[W >= 2, 2] waypoints", lambda s: len(s) == 2 and s[1] == 2
+                                    and s[0] >= 2),
+                                   ("targets", targets, "[I, 4] (x, y, chi, U)", lambda s: len(s) == 2 and s[1] == 4),
+                                   ("last", last, "[2] (U_m, chi_m)", lambda s: s == (2,))):
+        a = jnp.asarray(value, dtype)
+        if not ok(a.shape):
+            raise ValueError(f"{name} must be {shape}, got shape {a.shape}")
+        if not isinstance(a, jax.core.Tracer) and not bool(jnp.all(jnp.isfinite(a))):
+            raise ValueError(f"{name} must be finite (no NaN/inf)")
+        out.append(a)
+    return tuple(out)
 
 
 def smooth_sbmpc_step(state0, route, targets, last, land, buffered_land, *, weights: SmoothWeights = SmoothWeights(),
                       model: ShipModel = ShipModel(), settings: SmoothSettings = SmoothSettings(),
-                      solver: SolverSettings = SolverSettings()) -> SmoothStep:
-    """One control step of Smooth-SBMPC (§1.1): Alg. 1 → Alg. 3 → DOCP (27) → safeguard.
+                      solver: SolverSettings | None = None, n_starts: int = 1, batch: str = "map",
+                      segment: int = 0) -> SmoothStep:
+    """One control step of Smooth-SBMPC (§1.1): Alg. 1 → Alg. 3 → DOCP (27) from ``n_starts`` starts →
+    safeguard, as one jitted computation (values never recompile; ``settings``, ``n_starts``, ``batch``, the
+    static fields of ``solver`` and the array shapes do).
 
     ``land``: the unbuffered chart (``pack_world(...).polygons``) for N_TP; ``buffered_land``: the chart
     buffered by ``settings.r_dom`` (:func:`psbmpc_jax.smooth.buffered_chart`, built once per chart) for the
-    corridor.  Other arguments as :func:`psbmpc_jax.smooth.init_stage.init_stage`."""
-    init = init_stage(state0, route, targets, last, land, weights, model, settings)
-    n = settings.n_mpc
-    dtype = init.psi.dtype
-    corridor = cross_track_corridor(init.psi[:n + 2, :2], buffered_land, settings.corridor_half_width)
-    corridor = jax.tree.map(lambda a: a[:n + 1], corridor)
-    args = DocpArgs(init.psi[0], jnp.asarray(route, dtype), jnp.asarray(targets, dtype), jnp.asarray(last, dtype),
-                    init.psi[n], corridor, weights, model)
-    f, eq, ineq = problem(settings)
-    lower, upper = bounds(n, dtype)
-    warm = init.controls[:n]
-    result = solve_docp(f, warm, lower=lower, upper=upper, eq=eq, ineq=ineq, settings=solver, args=args)
-    kept = safeguard(result, warm, f, lower=lower, upper=upper, eq=eq, ineq=ineq, args=args, tol=solver.tol)
-    return SmoothStep(kept.u[0], kept.u, kept.f, kept.max_violation, kept.used_warm, result, init, corridor,
-                      f(warm, args))
+    corridor.  ``solver``: :data:`DOCP_SOLVER` when None.  ``n_starts``: 1 (Ψ only) … 40; ``batch``: how the
+    starts run, ``"map"`` (one after another, the faster on a CPU) or ``"vmap"``.  ``segment``: the active route
+    segment at τ₀.  Other arguments as :func:`psbmpc_jax.smooth.init_stage.init_stage`; every float input is
+    cast to ``state0``'s dtype (weights and model included)."""
+    solver = DOCP_SOLVER if solver is None else solver
+    check_step_options(settings, solver, n_starts, batch)
+    state0, route, targets, last = check_step_inputs(state0, route, targets, last)
+    dtype = state0.dtype
+    z = check_segment(segment, route.shape[0])
+    land, buffered_land = (cast_tree(as_chart(c, name), dtype) for c, name in ((land, "land"),
+                                                                            (buffered_land, "buffered_land")))
+    return _step_jit(state0, route, targets, last, jnp.asarray(z, jnp.int32), land, buffered_land,
+                     cast_tree(weights, dtype), cast_tree(model, dtype), solver, settings=settings, n_starts=n_starts,
+                     batch=batch)

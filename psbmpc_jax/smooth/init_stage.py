@@ -25,6 +25,7 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from ..costs.manoeuvring import gamma_smooth
 from ..costs.sbmpc import sbmpc_costs
@@ -129,13 +130,16 @@ class ShipModel:
 
 class InitResult(NamedTuple):
     """Ψ ``[N_init + 1, 4]``, the applied offsets ``[N_init, 2]`` (U_m, χ_m), the chosen behaviour's total cost
-    and N_TP per inner step ``[N_init]``, and the route segment at each state of Ψ ``[N_init + 1]``."""
+    and N_TP per inner step ``[N_init]``, the route segment at each state of Ψ ``[N_init + 1]`` and the total
+    cost of every behaviour at τ₀ (the first inner step, ``[39]``: the multi-start of the DOCP takes its best
+    constant behaviours from it)."""
 
     psi: jax.Array
     controls: jax.Array
     cost: jax.Array
     n_tp: jax.Array
     segment: jax.Array
+    first_cost: jax.Array
 
 
 def behaviour_table(dtype=jnp.float32) -> jax.Array:
@@ -158,12 +162,14 @@ def target_predictions(targets, t):
                      axis=-1)
 
 
-def rollout_controls(x0, path, controls, model: ShipModel, dt, z0=0, return_segment=False):
-    """Own-ship states ``[N + 1, 4]`` of (13) with LOS along ``path`` under per-step controls ``[N, 2]``."""
+def rollout_controls(x0, path, controls, model: ShipModel, dt, z0=0, return_segment=False, unroll=1):
+    """Own-ship states ``[N + 1, 4]`` of (13) with LOS along ``path`` under per-step controls ``[N, 2]``
+    (``unroll``: of the scan; ``True`` unrolls it fully, which lets XLA fuse a short horizon into a few
+    kernels)."""
     n = controls.shape[0]
     out = los_rollout(x0[None, :], path, controls[:, 1:2], model.U_d * controls[:, 0:1],
                       jnp.zeros((1,), x0.dtype), model.lookahead, model.R_a, model.T_chi, model.T_U, dt,
-                      z0=jnp.asarray(z0, jnp.int32)[None], return_segment=True)
+                      z0=jnp.asarray(z0, jnp.int32)[None], return_segment=True, unroll=unroll)
     traj, seg = out
     states = jnp.stack([traj.x[:, 0], traj.y[:, 0], traj.chi[:, 0], traj.U[:, 0]], axis=-1)[:n + 1]
     return (states, seg[:n + 1, 0]) if return_segment else states
@@ -205,10 +211,14 @@ def behaviour_costs(state, z, targets, last, path, chart, weights: SmoothWeights
     return total, n_tp, hazard, gamma
 
 
-def _init_stage(state0, route, targets, last, chart, weights, model, settings: SmoothSettings) -> InitResult:
+def init_stage_traced(state0, route, targets, last, chart, weights, model, settings: SmoothSettings,
+                      segment=0) -> InitResult:
+    """Traceable Algorithm 1 (no validation): see :func:`init_stage`.  ``segment``: the active route segment at
+    τ₀ (int32 scalar, may be traced)."""
     path = route_path(route)
     table = behaviour_table(state0.dtype)
     dt = settings.dt
+    z0 = jnp.asarray(segment, jnp.int32)
 
     def step(carry, _):
         state, z, tg, lst = carry
@@ -218,28 +228,43 @@ def _init_stage(state0, route, targets, last, chart, weights, model, settings: S
         states, seg = rollout_controls(state, path, u[None, :], model, dt, z0=z, return_segment=True)
         x, yv, chi, U = (tg[:, i] for i in range(4))
         tg_next = jnp.stack([x + U * jnp.cos(chi) * dt, yv + U * jnp.sin(chi) * dt, chi, U], axis=-1)
-        return (states[1], seg[1], tg_next, u), (states[1], u, total[k], n_tp[k], seg[1])
+        return (states[1], seg[1], tg_next, u), (states[1], u, total[k], n_tp[k], seg[1], total)
 
-    init = (state0, jnp.asarray(0, jnp.int32), targets, last)
-    _, (states, controls, cost, n_tp, seg) = jax.lax.scan(step, init, None, length=settings.n_init)
+    init = (state0, z0, targets, last)
+    _, (states, controls, cost, n_tp, seg, totals) = jax.lax.scan(step, init, None, length=settings.n_init)
     psi = jnp.concatenate([state0[None, :], states], axis=0)
-    return InitResult(psi, controls, cost, n_tp, jnp.concatenate([jnp.zeros((1,), jnp.int32), seg]))
+    return InitResult(psi, controls, cost, n_tp, jnp.concatenate([z0[None], seg]), totals[0])
 
 
-_init_stage_jit = jax.jit(_init_stage, static_argnames=("settings",))
+_init_stage_jit = jax.jit(init_stage_traced, static_argnames=("settings",))
+
+
+def check_segment(segment, n_waypoints: int, name: str = "segment") -> int:
+    """A concrete active-segment index: an integer in [0, W − 2] (``W`` waypoints); returns it as ``int``."""
+    arr = None if isinstance(segment, jax.core.Tracer) else np.asarray(segment)
+    if arr is None or arr.ndim != 0 or not np.issubdtype(arr.dtype, np.integer):
+        raise ValueError(f"{name} must be an integer route-segment index, got {segment!r}")
+    z = int(arr)
+    if not 0 <= z <= n_waypoints - 2:
+        raise ValueError(f"{name} must be in [0, {n_waypoints - 2}] (segment z runs from waypoint z to z + 1 of "
+                         f"the {n_waypoints} waypoints), got {z}")
+    return z
 
 
 def init_stage(state0, route, targets, last, chart, weights: SmoothWeights = SmoothWeights(),
-               model: ShipModel = ShipModel(), settings: SmoothSettings = SmoothSettings()) -> InitResult:
+               model: ShipModel = ShipModel(), settings: SmoothSettings = SmoothSettings(),
+               segment: int = 0) -> InitResult:
     """Algorithm 1 (jitted): Ψ and the applied offsets over T_init.
 
     Args:
         state0: own-ship state ``[4]`` (x, y, χ, U) at τ₀.
-        route: own-ship waypoints ``[W >= 2, 2]``; the first segment is the active one at τ₀.
+        route: own-ship waypoints ``[W >= 2, 2]`` (the whole route).
         targets: target states ``[I, 4]`` (x, y, χ, U), point objects, constant velocity; ``I`` may be 0.
         last: the last applied offsets ``[2]`` (U_m,last, χ_m,last).
         chart: the land polygons packed by :func:`psbmpc_jax.packing.pack_world` (``ChartArrays`` or
             ``WorldArrays``), unbuffered: N_TP uses the ship-domain radius ``settings.r_dom``.
+        segment: the active route segment at τ₀ (0 ≤ segment ≤ W − 2: from waypoint ``segment`` to the next);
+            a value, not a shape, so runs on different segments share one compilation.
     """
     if not isinstance(settings, SmoothSettings):
         raise ValueError(f"settings must be a SmoothSettings, got {type(settings).__name__}")
@@ -255,4 +280,5 @@ def init_stage(state0, route, targets, last, chart, weights: SmoothWeights = Smo
         raise ValueError(f"targets must be [I, 4] (x, y, chi, U), got shape {targets.shape}")
     if last.shape != (2,):
         raise ValueError(f"last must be [2] (U_m, chi_m), got shape {last.shape}")
-    return _init_stage_jit(state0, route, targets, last, chart, weights, model, settings)
+    z = check_segment(segment, route.shape[0])
+    return _init_stage_jit(state0, route, targets, last, chart, weights, model, settings, jnp.asarray(z, jnp.int32))

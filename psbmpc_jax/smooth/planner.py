@@ -1,0 +1,290 @@
+"""Host API of Smooth-SBMPC (seed 000) for the closed-loop simulator: :class:`SmoothSBMPCPlanner`.
+
+>>> planner = SmoothSBMPCPlanner(polygons)                       # packs the land chart and its buffer once
+>>> plan = planner.plan(state0, route, targets, last, segment=0)  # one ship
+>>> plans = planner.plan_batch(states, route, targets, last, segments)   # R runs, one device call
+
+Frame: NED, positions (north, east) [m], courses from north, clockwise positive [rad].  States and targets are
+``(north, east, course, speed)``; controls and ``last`` are the offsets ``(U_m, χ_m)`` (speed factor, course
+offset [rad]).  ``route [W, 2]`` is the whole route; ``segment`` the active segment (from waypoint ``segment``
+to the next) — a value, so runs on different segments share one compilation and one ``vmap``.
+
+**Local origin** (as :class:`psbmpc_jax.Planner`, docs/algorithm.md §11): the device works relative to
+:attr:`SmoothSBMPCPlanner.origin`, a multiple of 1 km (the centre of the chart's bounding box, else the first
+planned own-ship position), subtracted in float64 on the host before the cast to the device dtype, so float32
+keeps millimetre resolution with UTM-sized coordinates.  It is re-chosen (and the chart re-packed, cached per
+origin) when an own-ship is more than 10 km from it.  Everything returned is in the user's frame.
+
+One step (``init_only=False``): the initialisation stage (Alg. 1–2), the corridor of Ψ (Alg. 3), the DOCP (27)
+from ``n_starts`` starts (Ψ and the best constant behaviours at τ₀), the best feasible result and the safeguard
+against Ψ (:mod:`psbmpc_jax.smooth.docp`).  ``init_only=True`` is the "original SB-MPC" of the paper's
+Simulation 01: the init stage alone, whose first offsets are applied.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax import lax
+
+from ..nlp import SolverSettings
+from ..packing import pack_world, snap_origin
+from ..params import PlannerConfig
+from .corridor import buffered_chart
+from .docp import DOCP_SOLVER, cast_tree, step_traced, check_step_options
+from .init_stage import ShipModel, SmoothSettings, SmoothWeights, init_stage_traced
+
+#: The planner re-chooses its local origin when an own-ship is farther than this from it in north or east [m]
+#: (float32 spacing stays <= 1 mm out to 10 km).
+RECENTRE_DISTANCE = 10_000.0
+
+DTYPES = ("float32", "float64")
+
+
+class SmoothPlan(NamedTuple):
+    """The result of :meth:`SmoothSBMPCPlanner.plan` (host NumPy arrays; :meth:`~SmoothSBMPCPlanner.plan_batch`
+    adds a leading run axis ``[R]`` to every field).
+
+    Attributes:
+        apply: the offsets to apply now ``[2]`` (U_m, χ_m).
+        controls: the kept sequence ``[N_mpc, 2]`` (``init_only``: the init stage's first N_mpc offsets).
+        psi: the init stage's trajectory Ψ ``[N_init + 1, 4]`` (north, east, course, speed), user's frame
+            (float64).
+        cost: J_d of the kept sequence (``init_only``: the chosen behaviour's total cost at τ₀).
+        warm_cost: J_d of the warm start Ψ (``init_only``: = cost).
+        violation: max constraint violation of the kept sequence [m, rad] (``init_only``: 0).
+        used_warm: the safeguard kept the warm start (``init_only``: True).
+        status: solver status of the best start (0 converged, 1 max-iter, 2 infeasible, 3 non-finite;
+            ``init_only``: 0).
+        iterations: inner solver iterations summed over the starts (``init_only``: 0).
+    """
+
+    apply: np.ndarray
+    controls: np.ndarray
+    psi: np.ndarray
+    cost: np.ndarray
+    warm_cost: np.ndarray
+    violation: np.ndarray
+    used_warm: np.ndarray
+    status: np.ndarray
+    iterations: np.ndarray
+
+
+# ------------------------------------------------------------------------------------------ device side
+def _plan_core(state0, route, targets, last, segment, land, buffered, weights, model, solver, *,
+               settings: SmoothSettings, n_starts: int, batch: str, init_only: bool) -> SmoothPlan:
+    """One ship, traceable; positions in the local frame."""
+    n = settings.n_mpc
+    if init_only:
+        init = init_stage_traced(state0, route, targets, last, land, weights, model, settings, segment)
+        cost = init.cost[0]
+        return SmoothPlan(init.controls[0], init.controls[:n], init.psi, cost, cost, jnp.zeros_like(cost),
+                          jnp.asarray(True), jnp.asarray(0, jnp.int32), jnp.asarray(0, jnp.int32))
+    st = step_traced(state0, route, targets, last, segment, land, buffered, weights, model, solver, settings=settings,
+               n_starts=n_starts, batch=batch)
+    return _from_step(st)
+
+
+def _from_step(st) -> SmoothPlan:
+    return SmoothPlan(st.apply, st.controls, st.init.psi, st.cost, st.warm_cost, st.violation, st.used_warm,
+                      st.solver.status, st.iterations)
+
+
+def _plan_batch_core(states, route, targets, last, segments, land, buffered, weights, model, solver, *,
+                     settings: SmoothSettings, n_starts: int, batch: str, init_only: bool) -> SmoothPlan:
+    """R ships in one computation: the whole step ``lax.map``-ed over the runs (``batch="map"``) or ``vmap``-ed
+    (``batch="vmap"``).  On a CPU ``map`` is the faster: the init stage is compute-bound (``vmap`` over 8 runs
+    measured no faster than 8 single steps), its ``lax.cond`` culling and fast paths turn into ``select`` (both
+    branches) under ``vmap`` with per-run predicates, and vectorised solver loops run in lockstep
+    (docs/solver.md)."""
+    one = lambda s, t, l, z: _plan_core(s, route, t, l, z, land, buffered, weights, model, solver,  # noqa: E731
+                                        settings=settings, n_starts=n_starts, batch=batch, init_only=init_only)
+    if batch == "map":
+        return lax.map(lambda a: one(*a), (states, targets, last, segments))
+    return jax.vmap(one)(states, targets, last, segments)
+
+
+_STATIC = ("settings", "n_starts", "batch", "init_only")
+_plan_jit = jax.jit(_plan_core, static_argnames=_STATIC)
+_plan_batch_jit = jax.jit(_plan_batch_core, static_argnames=_STATIC)
+
+
+# ------------------------------------------------------------------------------------------ host side
+def polygon_rings(polygons) -> tuple:
+    """Land polygons (shapely (Multi)Polygons, rings ``[n, 2]``, or tuples of rings: outer ring then holes) as
+    a tuple of float64 ring tuples in the NED frame (``ValueError`` naming the polygon on a bad ring)."""
+    from shapely.geometry import MultiPolygon, Polygon
+
+    if isinstance(polygons, (Polygon, MultiPolygon)):
+        polygons = [polygons]
+    out = []
+    for j, p in enumerate(polygons):
+        if isinstance(p, (Polygon, MultiPolygon)):
+            parts = [p] if isinstance(p, Polygon) else list(p.geoms)
+            for g in parts:
+                if not g.is_empty:
+                    out.append(tuple(np.asarray(r.coords, float)[:-1, :2] for r in (g.exterior, *g.interiors)))
+            continue
+        rings = p if isinstance(p, (list, tuple)) and len(p) and np.ndim(p[0]) == 2 else (p,)
+        arrs = []
+        for k, r in enumerate(rings):
+            a = np.asarray(r, dtype=float)
+            if a.ndim != 2 or a.shape[1] != 2 or a.shape[0] < 3 or not np.all(np.isfinite(a)):
+                raise ValueError(f"polygons[{j}] ring {k} must be a finite array [n >= 3, 2] (north, east), got "
+                                 f"shape {a.shape}")
+            arrs.append(a)
+        out.append(tuple(arrs))
+    return tuple(out)
+
+
+def _array(value, name: str, shape_ok, shape_text: str) -> np.ndarray:
+    a = np.asarray(value)
+    if a.dtype.kind not in "iuf":
+        raise ValueError(f"{name} must be numeric, got dtype {a.dtype}")
+    a = a.astype(np.float64)
+    if not shape_ok(a.shape):
+        raise ValueError(f"{name} must be {shape_text}, got shape {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{name} must be finite (no NaN/inf)")
+    return a
+
+
+def _segments(value, n_runs: int | None, n_waypoints: int, name: str) -> np.ndarray:
+    a = np.asarray(value)
+    shape = () if n_runs is None else (n_runs,)
+    if a.shape != shape or a.dtype.kind not in "iu":
+        raise ValueError(f"{name} must be {'an integer' if n_runs is None else f'integers [{n_runs}]'} (active "
+                         f"route segment), got {a.dtype} of shape {a.shape}")
+    if np.any(a < 0) or np.any(a > n_waypoints - 2):
+        raise ValueError(f"{name} must be in [0, {n_waypoints - 2}] (segment z runs from waypoint z to z + 1 of the "
+                         f"{n_waypoints} waypoints), got {a.tolist()}")
+    return a.astype(np.int32)
+
+
+class SmoothSBMPCPlanner:
+    """Smooth-SBMPC for one ship (:meth:`plan`) or R independent runs sharing a chart and a route
+    (:meth:`plan_batch`, one jitted device call).
+
+    Args:
+        polygons: land polygons in the NED frame [m] (shapely Polygons, rings ``[n, 2]`` or tuples of rings,
+            as :class:`psbmpc_jax.Situation` polygons); the land chart (N_TP) and the chart buffered by
+            ``settings.r_dom`` (corridor) are packed once per local origin.
+        weights, model, settings: :class:`SmoothWeights` (numeric, traced), :class:`ShipModel`,
+            :class:`SmoothSettings` (static); None gives the defaults.
+        solver: the DOCP's :class:`~psbmpc_jax.nlp.SolverSettings`; None: :data:`psbmpc_jax.smooth.docp.DOCP_SOLVER`.
+        n_starts: DOCP starts, 1 (Ψ only) … 40 (Ψ and the n_starts − 1 best constant behaviours at τ₀).
+        batch: ``"map"`` (default; independent solves — starts, and runs in :meth:`plan_batch` — one after
+            another in one compiled call, the faster on a CPU) or ``"vmap"`` (vectorised).
+        init_only: the "original SB-MPC" (the paper's Simulation 01): apply the init stage's first offsets; no
+            corridor, no DOCP.
+        dtype: device float type, ``"float32"`` (default) or ``"float64"`` (needs ``jax_enable_x64``).
+    """
+
+    def __init__(self, polygons=(), *, weights: SmoothWeights | None = None, model: ShipModel | None = None,
+                 settings: SmoothSettings | None = None, solver: SolverSettings | None = None, n_starts: int = 4,
+                 batch: str = "map", init_only: bool = False, dtype: str = "float32"):
+        self.weights = SmoothWeights() if weights is None else weights
+        self.model = ShipModel() if model is None else model
+        self.settings = SmoothSettings() if settings is None else settings
+        self.solver = DOCP_SOLVER if solver is None else solver
+        if not isinstance(self.weights, SmoothWeights):
+            raise ValueError(f"weights must be a SmoothWeights, got {type(self.weights).__name__}")
+        if not isinstance(self.model, ShipModel):
+            raise ValueError(f"model must be a ShipModel, got {type(self.model).__name__}")
+        check_step_options(self.settings, self.solver, n_starts, batch)
+        if not isinstance(init_only, (bool, np.bool_)):
+            raise ValueError(f"init_only must be a bool, got {init_only!r}")
+        if str(dtype) not in DTYPES:
+            raise ValueError(f"dtype must be one of {DTYPES}, got {dtype!r}")
+        if str(dtype) == "float64" and not jax.config.jax_enable_x64:
+            raise ValueError("dtype 'float64' needs 64-bit JAX (jax.config.update('jax_enable_x64', True))")
+        self.n_starts, self.batch, self.init_only, self.dtype = int(n_starts), batch, bool(init_only), np.dtype(dtype)
+        self.polygons = polygon_rings(polygons)
+        self.origin: np.ndarray | None = None
+        if self.polygons:
+            pts = np.concatenate([r for poly in self.polygons for r in poly])
+            self.origin = snap_origin(0.5 * (pts.min(axis=0) + pts.max(axis=0)))
+        self._charts: dict = {}
+        self._w = cast_tree(self.weights, self.dtype)
+        self._m = cast_tree(self.model, self.dtype)
+
+    # -------------------------------------------------------------------------------------- helpers
+    def _origin_for(self, positions: np.ndarray) -> np.ndarray:
+        """The local origin for own-ship ``positions [..., 2]`` (float64, user's frame)."""
+        pos = positions.reshape(-1, 2)
+        if self.origin is None or (len(pos) and np.max(np.abs(pos - self.origin)) > RECENTRE_DISTANCE):
+            self.origin = snap_origin(pos[0])
+        return self.origin
+
+    def charts(self, origin=None):
+        """``(land, buffered)`` packed about ``origin`` (default: :attr:`origin`, or (0, 0) before the first
+        plan), cached per origin."""
+        o = np.zeros(2) if origin is None and self.origin is None else np.asarray(
+            self.origin if origin is None else origin, float)
+        key = (float(o[0]), float(o[1]))
+        if key not in self._charts:
+            shifted = tuple(tuple(r - o for r in poly) for poly in self.polygons)
+            land = pack_world(shifted, PlannerConfig(dtype=self.dtype.name)).polygons
+            buf = land if self.init_only else buffered_chart(shifted, self.settings.r_dom, dtype=self.dtype.name)
+            self._charts[key] = (land, buf)
+        return self._charts[key]
+
+    def _local(self, states, route, targets, origin):
+        f = self.dtype.type
+        states, targets = states.copy(), targets.copy()
+        states[..., :2] -= origin
+        targets[..., :2] -= origin
+        return (np.asarray(states, f), np.asarray(route - origin, f), np.asarray(targets, f))
+
+    def _finish(self, plan, origin) -> SmoothPlan:
+        plan = jax.device_get(plan)
+        psi = np.asarray(plan.psi, np.float64).copy()
+        psi[..., :2] += origin
+        return SmoothPlan(*(np.asarray(getattr(plan, k)) for k in ("apply", "controls")), psi,
+                          *(np.asarray(getattr(plan, k)) for k in SmoothPlan._fields[3:]))
+
+    def _statics(self):
+        return dict(settings=self.settings, n_starts=self.n_starts, batch=self.batch, init_only=self.init_only)
+
+    # -------------------------------------------------------------------------------------- API
+    def plan(self, state0, route, targets, last, segment=0) -> SmoothPlan:
+        """One ship: ``state0 [4]`` (north, east, course, speed), ``route [W >= 2, 2]``, ``targets [I, 4]``
+        (north, east, course, speed; I may be 0), ``last [2]`` the offsets applied last (U_m, χ_m),
+        ``segment`` the active route segment.  Returns :class:`SmoothPlan` (host arrays, user's frame)."""
+        state0 = _array(state0, "state0", lambda s: s == (4,), "[4] (north, east, course, speed)")
+        route = _array(route, "route", lambda s: len(s) == 2 and s[1] == 2 and s[0] >= 2, "[W >= 2, 2] waypoints")
+        targets = _array(targets, "targets", lambda s: len(s) == 2 and s[1] == 4, "[I, 4] (north, east, course, "
+                         "speed)")
+        last = _array(last, "last", lambda s: s == (2,), "[2] (U_m, chi_m)")
+        z = _segments(segment, None, route.shape[0], "segment")
+        origin = self._origin_for(state0[:2])
+        land, buf = self.charts(origin)
+        s, r, t = self._local(state0, route, targets, origin)
+        plan = _plan_jit(s, r, t, np.asarray(last, self.dtype), jnp.asarray(z), land, buf, self._w, self._m,
+                         self.solver, **self._statics())
+        return self._finish(plan, origin)
+
+    def plan_batch(self, states, route, targets, last, segments) -> SmoothPlan:
+        """R runs in one jitted call: ``states [R, 4]``, ``targets [R, I, 4]``, ``last [R, 2]``, ``segments [R]``
+        (integers); ``route [W, 2]`` shared.  Returns :class:`SmoothPlan` with a leading ``[R]`` axis; row r equals
+        ``plan(states[r], route, targets[r], last[r], segments[r])`` up to rounding."""
+        states = _array(states, "states", lambda s: len(s) == 2 and s[1] == 4 and s[0] >= 1,
+                        "[R >= 1, 4] (north, east, course, speed)")
+        R = states.shape[0]
+        route = _array(route, "route", lambda s: len(s) == 2 and s[1] == 2 and s[0] >= 2, "[W >= 2, 2] waypoints")
+        targets = _array(targets, "targets", lambda s: len(s) == 3 and s[0] == R and s[2] == 4,
+                         f"[R = {R}, I, 4] (north, east, course, speed)")
+        last = _array(last, "last", lambda s: s == (R, 2), f"[R = {R}, 2] (U_m, chi_m)")
+        z = _segments(segments, R, route.shape[0], "segments")
+        origin = self._origin_for(states[:, :2])
+        land, buf = self.charts(origin)
+        s, r, t = self._local(states, route, targets, origin)
+        plan = _plan_batch_jit(s, r, t, np.asarray(last, self.dtype), jnp.asarray(z), land, buf, self._w, self._m,
+                               self.solver, **self._statics())
+        return self._finish(plan, origin)
+
+
+__all__ = ["SmoothSBMPCPlanner", "SmoothPlan", "RECENTRE_DISTANCE", "polygon_rings"]
