@@ -25,7 +25,15 @@ from psbmpc_jax.situation import Obstacle, OwnShip, Situation  # noqa: E402
 def pytest_configure(config):
     """Persistent XLA compilation cache under .pytest_cache (set PSBMPC_TEST_NO_JAX_CACHE=1 to disable).
 
-    Cold runs are unaffected; warm runs skip most of the (dominant) compile time."""
+    Cold runs are unaffected; warm runs skip most of the (dominant) compile time.
+
+    Under CI (``CI`` set; every CI run starts from a fresh clone, so its cache is always cold) the persistent
+    cache is switched off altogether (``jax_enable_compilation_cache``), also for the in-process CLI tests that
+    call :func:`psbmpc_jax.enable_compilation_cache`: writing it only costs time there, and a local run saw an
+    XLA abort inside a cache write (``put_executable_and_time``) with two workers."""
+    if os.environ.get("CI"):
+        jax.config.update("jax_enable_compilation_cache", False)
+        return
     if os.environ.get("PSBMPC_TEST_NO_JAX_CACHE"):
         return
     try:

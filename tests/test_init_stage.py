@@ -45,6 +45,15 @@ def oracle_n_tp(traj, polys, r_dom):
     return len(traj) - 1
 
 
+def oracle_radius(state, polys, r_dom):
+    """C-000-16: min(r_dom, 0.9 x clearance) when the state is closer than r_dom to land (0 inside)."""
+    if not len(polys):
+        return r_dom
+    land = shapely.unary_union([shapely.Polygon(p) for p in polys])
+    clearance = land.distance(shapely.Point(state[:2]))
+    return 0.9 * clearance if clearance < r_dom else r_dom
+
+
 def oracle_init_stage(state0, route, targets, last, polys, w: SmoothWeights, s: SmoothSettings, m: ShipModel):
     """Algorithms 1-2 as plain float64 loops (route LOS re-evaluated along each prediction, C-000-11)."""
     n = s.n_init
@@ -64,7 +73,8 @@ def oracle_init_stage(state0, route, targets, last, polys, w: SmoothWeights, s: 
             own = ref.los_rollout(state, route, c, m.U_d * u, 0.0, m.lookahead, m.R_a, m.T_chi, m.T_U, s.dt, n)
             hazard = rs.sbmpc_cost(own, tg_traj, t, component="joint", aggregation="max", **kw) if len(tg) else 0.0
             gamma = rs.gamma_smooth(u, c, lst[0], lst[1], **gw)
-            totals.append(hazard + gamma + w.k_ntp * (n - oracle_n_tp(own[:, :2], polys, s.r_dom)))
+            totals.append(hazard + gamma + w.k_ntp * (n - oracle_n_tp(own[:, :2], polys, oracle_radius(state, polys,
+                                                                                                   s.r_dom))))
         k = int(np.argmin(totals))
         u, c = table[k]
         controls.append((u, c))
@@ -153,3 +163,40 @@ def test_active_segment_is_an_argument_and_first_cost_is_the_first_inner_evaluat
     for bad in (-1, 3, 1.0, True, np.array([1])):
         with pytest.raises(ValueError, match="segment"):
             init_stage(STATE0, route, HEAD_ON, np.array([1.0, 0.0]), chart, settings=SETTINGS, segment=bad)
+
+
+@pytest.mark.parametrize("clearance", [3.0, 0.5])
+def test_state_inside_the_domain_still_ranks_behaviours_by_land(clearance):
+    """C-000-16: an inner state closer than r_dom to land. With the plain r_dom every behaviour would hit at
+    point 0 (same N_TP, the penalty could not tell them apart); with the shrunk radius the behaviours that turn
+    away from the wall keep N_TP = N and those that turn into it do not."""
+    # wall along the route, `clearance` m to starboard (east), 4 m domain
+    wall = [np.array([[-50.0, clearance], [200.0, clearance], [200.0, clearance + 20.0], [-50.0, clearance + 20.0]])]
+    chart = chart_of(wall)
+    assert SETTINGS.r_dom > clearance
+    from psbmpc_jax.smooth.init_stage import behaviour_costs, domain_radius, route_path
+    radius = float(domain_radius(jnp.asarray(STATE0), chart, SETTINGS.r_dom))
+    assert radius == pytest.approx(0.9 * clearance, rel=1e-9)
+    _, n_tp, _, _ = behaviour_costs(jnp.asarray(STATE0), jnp.asarray(0, jnp.int32), jnp.zeros((0, 4)),
+                                    jnp.asarray([1.0, 0.0]), route_path(ROUTE), chart, SmoothWeights(), MODEL,
+                                    SETTINGS)
+    n_tp = np.asarray(n_tp).reshape(len(COURSE_OFFSETS_DEG), len(SPEED_FACTORS))
+    port = [i for i, c in enumerate(COURSE_OFFSETS_DEG) if c <= -30]
+    stbd = [i for i, c in enumerate(COURSE_OFFSETS_DEG) if c >= 30]
+    assert np.all(n_tp[port] == SETTINGS.n_init)          # turning away: no hit
+    full = SPEED_FACTORS.index(1.0) if isinstance(SPEED_FACTORS, (list, tuple)) else list(SPEED_FACTORS).index(1.0)
+    assert np.all(n_tp[stbd, full] < SETTINGS.n_init)     # turning into the wall at full speed: hit
+    assert np.all(n_tp > 0)                               # point 0 is no longer a hit for every behaviour
+    # the plain radius (what C-000-16 replaces) makes every behaviour hit at point 0
+    from psbmpc_jax.smooth.land_hit import first_land_hit
+    assert np.all(np.asarray(first_land_hit(np.zeros((1, 2, 2)), chart, SETTINGS.r_dom)) == 0)
+
+
+def test_domain_radius_is_r_dom_away_from_land_and_zero_inside():
+    from psbmpc_jax.smooth.init_stage import domain_radius
+    box = [np.array([[10.0, -4.0], [10.0, 3.0], [16.0, 3.0], [16.0, -4.0]])]
+    chart = chart_of(box)
+    assert float(domain_radius(jnp.asarray(STATE0), chart, SETTINGS.r_dom)) == SETTINGS.r_dom
+    inside = jnp.asarray([12.0, 0.0, 0.0, 1.0])
+    assert float(domain_radius(inside, chart, SETTINGS.r_dom)) == 0.0
+    assert float(domain_radius(jnp.asarray(STATE0), chart_of([]), SETTINGS.r_dom)) == SETTINGS.r_dom

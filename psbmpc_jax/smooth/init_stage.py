@@ -30,7 +30,7 @@ import numpy as np
 from ..costs.manoeuvring import gamma_smooth
 from ..costs.sbmpc import sbmpc_costs
 from ..ownship import los_rollout, make_path
-from .land_hit import first_land_hit
+from .land_hit import first_land_hit, land_clearance
 
 #: Course offsets (26a) [deg] and speed factors (26b) of the 39 behaviours.
 COURSE_OFFSETS_DEG = tuple(float(c) for c in range(-90, 91, 15))
@@ -186,6 +186,25 @@ def gamma_weights(weights: SmoothWeights) -> dict:
                 Delta_U=weights.Delta_U, Delta_chi_port=weights.Delta_chi_port, Delta_chi_stbd=weights.Delta_chi_stbd)
 
 
+#: C-000-16 (our addition): when the inner state is already within r_dom of land, the N_TP test uses this
+#: fraction of its present clearance as the domain radius.
+DOMAIN_SHRINK = 0.9
+
+
+def domain_radius(state, chart, r_dom):
+    """The ship-domain radius of the N_TP test at one inner state (C-000-16, docs/smooth_sbmpc.md):
+    ``min(r_dom, DOMAIN_SHRINK · clearance)``, clearance = the state's distance to land.  With the plain r_dom a
+    state already closer than r_dom to land (a closed loop that follows a plan along the corridor's edge ends
+    there by millimetres of tracking error) flags point 0 of every behaviour: N_TP = 0 for all 39, the penalty
+    no longer tells them apart, and the search picks by Γ alone, back towards the route and into land
+    (measured: 16 of 20 groundings in the reconstructed 000 scenario).  With the shrunk radius the behaviours
+    that close in further are still penalised and those that keep or open the distance are not.  Inside land
+    (clearance 0) the radius is 0: point 0 is flagged for all behaviours, as before."""
+    r_dom = jnp.asarray(r_dom, state.dtype)
+    clearance = land_clearance(state[:2], chart, r_dom)          # capped at r_dom
+    return jnp.where(clearance < r_dom, DOMAIN_SHRINK * clearance, r_dom)
+
+
 def behaviour_costs(state, z, targets, last, path, chart, weights: SmoothWeights, model: ShipModel,
                     settings: SmoothSettings):
     """Algorithm 2 for one inner state: ``(total [39], n_tp [39], hazard [39], gamma [39])``."""
@@ -206,7 +225,7 @@ def behaviour_costs(state, z, targets, last, path, chart, weights: SmoothWeights
     else:
         hazard = jnp.zeros((n_b,), state.dtype)
     gamma = gamma_smooth(table[:, 0], table[:, 1], last[0], last[1], **gamma_weights(weights))
-    n_tp = first_land_hit(own[..., :2], chart, settings.r_dom)
+    n_tp = first_land_hit(own[..., :2], chart, domain_radius(state, chart, settings.r_dom))
     total = hazard + gamma + weights.k_ntp * (n - n_tp).astype(state.dtype)
     return total, n_tp, hazard, gamma
 

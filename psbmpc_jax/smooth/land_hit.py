@@ -181,6 +181,13 @@ def segment_hits_edge(p0x, p0y, p1x, p1y, e):
 # --------------------------------------------------------------------------------------------- kernel
 def _flags_kernel(pts, chart: ChartArrays, r_dom, block: int):
     """Collision flags ``[K, T]`` of trajectories ``pts [K, T, 2]`` (the SPEC rule (a) or (b) at each j)."""
+    point_hit, seg_hit, _, _ = _scan_chart(pts, chart, r_dom, block)
+    return point_hit | seg_hit
+
+
+def _scan_chart(pts, chart: ChartArrays, r_dom, block: int):
+    """``(point_hit [K, T], seg_hit [K, T], d2 [K T], inside [K T])``: d2 is exact only within ``r_dom`` of a
+    point (farther blocks are culled) and ``big`` where nothing is that near."""
     K, T, _ = pts.shape
     pts = lax.stop_gradient(pts)
     px, py = pts[..., 0].reshape(-1, 1), pts[..., 1].reshape(-1, 1)                 # [K T, 1]
@@ -218,7 +225,18 @@ def _flags_kernel(pts, chart: ChartArrays, r_dom, block: int):
     inside = inside | parity
     point_hit = (inside | (d2 <= r * r)).reshape(K, T)
     seg_hit = jnp.concatenate([jnp.zeros((K, 1), bool), seg_hit.reshape(K, T - 1)], axis=1)
-    return point_hit | seg_hit
+    return point_hit, seg_hit, d2, inside
+
+
+def land_clearance(point, chart, reach) -> jax.Array:
+    """Distance [m] from ``point [2]`` (north, east) to the land of ``chart`` (0 inside land), capped at
+    ``reach``: polygons farther than ``reach`` are not visited, and ``reach`` is returned when none is nearer.
+    Traceable (no validation; used inside the init stage's jit), no gradient."""
+    pts = jnp.reshape(jnp.asarray(point), (1, 1, 2))
+    reach = jnp.asarray(reach, pts.dtype)
+    _, _, d2, inside = _scan_chart(pts, as_chart(chart), reach, DEFAULT_BLOCK)
+    d = jnp.sqrt(jnp.minimum(d2[0], reach * reach))
+    return jnp.where(inside[0], jnp.zeros_like(d), d)
 
 
 @partial(jax.jit, static_argnames=("block",))
@@ -265,4 +283,4 @@ def first_land_hit(traj_xy, chart, r_dom, *, block: int = DEFAULT_BLOCK) -> jax.
     return _hits(traj_xy, chart, r_dom, block)[1]
 
 
-__all__ = ["first_land_hit", "land_collision_flags", "edge_blocks", "EdgeBlocks", "DEFAULT_BLOCK"]
+__all__ = ["first_land_hit", "land_collision_flags", "land_clearance", "edge_blocks", "EdgeBlocks", "DEFAULT_BLOCK"]
