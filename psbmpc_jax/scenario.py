@@ -170,13 +170,16 @@ class SolverSpec:
 @dataclass(frozen=True)
 class RefineSpec:
     """``mpc.refine``: the gradient refinement after the PSB-MPC grid search (``psbmpc_refine``): starts,
-    horizon [s] (None: the PSB-MPC horizon ``config.T``) and the COLREGS term (``"fis"`` or ``"none"``);
+    horizon [s] (None: the PSB-MPC horizon ``config.T``), the COLREGS term (``"fis"`` or ``"none"``), ``block``:
+    how long each refined control is held [s] (``mpc.refine.block_s``, a multiple of ``config.dt``; None: the
+    MPC update period, so the refined controls change no faster than the planner re-plans);
     ``fis_e_cl`` / ``fis_n_y``: ``mpc.fis.e_cl_m`` / ``n_y`` when the file gives them (None: the refinement's
     own defaults)."""
 
     n_starts: int = 4
     horizon: float | None = None
     colregs: str = "fis"
+    block: float | None = None
     fis_e_cl: float | None = None
     fis_n_y: int | None = None
 
@@ -283,7 +286,7 @@ _SMOOTH_KEYS = ("T_init_s", "T_mpc_s", "dt_s", "corridor_half_width_m", "domain_
                 "n_starts")
 _FIS_KEYS = ("d_cl_m", "e_cl_m", "eps", "n_y", "completion")
 _SOLVER_KEYS = ("max_outer", "max_inner", "tol", "method")
-_REFINE_KEYS = ("n_starts", "horizon_s", "colregs")
+_REFINE_KEYS = ("n_starts", "horizon_s", "colregs", "block_s")
 _TERMINALS = ("full", "position", "soft")
 _COMPLETIONS = ("default_false", "literal")
 _SOLVER_METHODS = ("lbfgs", "adam")
@@ -658,6 +661,13 @@ def _refine_spec(d, config: PlannerConfig) -> RefineSpec:
         kw["horizon"] = h
     if "colregs" in d:
         kw["colregs"] = _choice(d["colregs"], _REFINE_COLREGS, f"{w}.colregs")
+    if "block_s" in d:
+        b = _number(d["block_s"], f"{w}.block_s", gt=0)
+        limit = kw.get("horizon", config.T)
+        if b > limit * (1 + 1e-9):
+            raise ValueError(f"{w}.block_s ({b:g}) must be <= the refined horizon ({limit:g} s)")
+        multiple_of(b, config.dt, f"{w}.block_s", "the PSB-MPC step mpc.config dt")
+        kw["block"] = b
     return RefineSpec(**kw)
 
 

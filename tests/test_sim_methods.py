@@ -593,3 +593,25 @@ def test_smooth_sbmpc_with_the_step_adapter(monkeypatch):
     assert r.method == "smooth_sbmpc" and np.isfinite(r.states).all()
     info = r.colav_info
     assert np.all(info["violation"] <= 1e-3 + 1e-9) and np.all(info["cost"] <= info["warm_cost"] + 1e-6)
+
+
+# ============================================================================================= refine block
+def test_refine_block_is_the_update_period_by_default_and_block_s_overrides_it():
+    from psbmpc_jax.refine import RefineSettings
+
+    sc = scenario_from_dict(tiny(method="psbmpc_refine"))
+    mpc = sc.mpc
+    assert mpc.refine.block is None
+    want = max(1, round(min(mpc.period, mpc.config.T) / mpc.config.dt))
+    assert colav.refine_settings(mpc, RefineSettings).block == want
+    d = tiny(method="psbmpc_refine", refine={"block_s": 2 * sc.mpc.config.dt})
+    m2 = scenario_from_dict(d).mpc
+    assert m2.refine.block == 2 * sc.mpc.config.dt
+    assert colav.refine_settings(m2, RefineSettings).block == 2
+
+
+@pytest.mark.parametrize("block_s, match", [(0, "block_s"), (-1, "block_s"), ("x", "block_s"),
+                                            (1e6, "refined horizon"), (0.3, "multiple")])
+def test_refine_block_s_errors(block_s, match):
+    with pytest.raises(ValueError, match=match):
+        scenario_from_dict(tiny(method="psbmpc_refine", refine={"block_s": block_s}))

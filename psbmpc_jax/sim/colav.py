@@ -199,7 +199,9 @@ class PSBMPCGroup:
 def refine_settings(mpc, settings_cls):
     """``RefineSettings`` from the scenario's ``mpc.refine`` and, where the file gives them, ``mpc.solver`` (over
     RefineSettings' default solver) and ``mpc.fis.e_cl_m`` / ``n_y`` (the refinement's FIS edge width and output
-    grid).  The rest (``batch``, ``block``, ``path_eps``) are RefineSettings' defaults."""
+    grid).  ``block``: ``mpc.refine.block_s`` in PSB-MPC steps, by default the MPC update period (one refined
+    control per re-plan: per-step controls jittered in closed loop, docs/refine.md "Closed loop").  The rest
+    (``batch``, ``path_eps``) are RefineSettings' defaults."""
     from ..nlp import SolverSettings
 
     r = mpc.refine
@@ -208,6 +210,8 @@ def refine_settings(mpc, settings_cls):
         base = getattr(settings_cls(), "solver", None)
         kw["solver"] = dataclasses.replace(base if isinstance(base, SolverSettings) else SolverSettings(),
                                            **mpc.solver.given())
+    hold = r.block if r.block is not None else min(mpc.period, r.horizon or mpc.config.T)
+    kw["block"] = max(1, int(round(hold / mpc.config.dt)))
     return settings_cls(n_starts=r.n_starts, horizon=r.horizon, colregs=r.colregs, **kw)
 
 

@@ -122,19 +122,26 @@ def _as_shapely(polygons) -> list:
         if isinstance(p, (Polygon, MultiPolygon)):
             g = p
         else:
-            rings = p if isinstance(p, (list, tuple)) and len(p) and np.ndim(p[0]) == 2 else (p,)
-            arrs = []
-            for k, r in enumerate(rings):
-                a = np.asarray(r, dtype=float)
-                if a.ndim != 2 or a.shape[1] != 2 or a.shape[0] < 3 or not np.all(np.isfinite(a)):
-                    raise ValueError(f"polygons[{j}] ring {k} must be a finite array [n >= 3, 2] (north, east), "
-                                     f"got shape {a.shape}")
-                arrs.append(a)
+            arrs = ring_arrays(p, j)
             g = Polygon(arrs[0], arrs[1:])
         if not g.is_valid:
             g = shapely.make_valid(g)
         out.append(g)
     return out
+
+
+def ring_arrays(p, j: int) -> list:
+    """One polygon given as a ring ``[n, 2]`` or a sequence of rings (outer ring, then holes) as a list of
+    float64 arrays, each checked: finite, ``[n >= 3, 2]`` (north, east); ``ValueError`` naming ``polygons[j]``."""
+    rings = p if isinstance(p, (list, tuple)) and len(p) and np.ndim(p[0]) == 2 else (p,)
+    arrs = []
+    for k, r in enumerate(rings):
+        a = np.asarray(r, dtype=float)
+        if a.ndim != 2 or a.shape[1] != 2 or a.shape[0] < 3 or not np.all(np.isfinite(a)):
+            raise ValueError(f"polygons[{j}] ring {k} must be a finite array [n >= 3, 2] (north, east), got "
+                             f"shape {a.shape}")
+        arrs.append(a)
+    return arrs
 
 
 def buffer_land(polygons, r_dom, *, quad_segs: int = DEFAULT_QUAD_SEGS):
@@ -364,6 +371,6 @@ def cross_track_residuals(positions, corridor: Corridor):
     return c.lower - e, e - c.upper
 
 
-__all__ = ["Corridor", "buffer_land", "buffered_chart", "cross_track_corridor", "cross_track_corridor_shapely",
+__all__ = ["Corridor", "buffer_land", "ring_arrays", "buffered_chart", "cross_track_corridor", "cross_track_corridor_shapely",
            "corridor_kernel", "cross_track_residuals", "boundary_points", "DEFAULT_QUAD_SEGS",
            "DEFAULT_MIN_SEGMENT"]

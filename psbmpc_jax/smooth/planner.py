@@ -33,7 +33,7 @@ from jax import lax
 from ..nlp import SolverSettings
 from ..packing import pack_world, snap_origin
 from ..params import PlannerConfig
-from .corridor import buffered_chart
+from .corridor import buffered_chart, ring_arrays
 from .docp import DOCP_SOLVER, cast_tree, step_traced, check_step_options
 from .init_stage import ShipModel, SmoothSettings, SmoothWeights, init_stage_traced
 
@@ -128,15 +128,7 @@ def polygon_rings(polygons) -> tuple:
                 if not g.is_empty:
                     out.append(tuple(np.asarray(r.coords, float)[:-1, :2] for r in (g.exterior, *g.interiors)))
             continue
-        rings = p if isinstance(p, (list, tuple)) and len(p) and np.ndim(p[0]) == 2 else (p,)
-        arrs = []
-        for k, r in enumerate(rings):
-            a = np.asarray(r, dtype=float)
-            if a.ndim != 2 or a.shape[1] != 2 or a.shape[0] < 3 or not np.all(np.isfinite(a)):
-                raise ValueError(f"polygons[{j}] ring {k} must be a finite array [n >= 3, 2] (north, east), got "
-                                 f"shape {a.shape}")
-            arrs.append(a)
-        out.append(tuple(arrs))
+        out.append(tuple(ring_arrays(p, j)))
     return tuple(out)
 
 
