@@ -226,3 +226,26 @@ def test_validation_names_the_field():
         first_land_hit(traj, [np.zeros((3, 2))], R_DOM)
     with pytest.raises(ValueError, match="block"):
         first_land_hit(traj, chart, R_DOM, block=0)
+
+
+def test_land_clearance_equals_shapely_capped_at_reach():
+    """land_clearance (the N_TP kernel's distance pass for one point, used by C-000-16) against shapely on random
+    points around a holed polygon and a triangle: the distance to land (0 inside, not inside a hole), capped at
+    the reach."""
+    import shapely
+
+    from psbmpc_jax.packing import pack_world
+    from psbmpc_jax.params import PlannerConfig
+    from psbmpc_jax.smooth.land_hit import land_clearance
+
+    outer = np.array([[0.0, 0.0], [40.0, 0.0], [40.0, 30.0], [0.0, 30.0]])
+    hole = np.array([[10.0, 10.0], [25.0, 10.0], [25.0, 20.0], [10.0, 20.0]])
+    tri = np.array([[60.0, 5.0], [75.0, 5.0], [65.0, 25.0]])
+    chart = pack_world([(outer, hole), tri], PlannerConfig(dtype="float64")).polygons
+    land = shapely.unary_union([shapely.Polygon(outer, [hole]), shapely.Polygon(tri)])
+    pts = np.random.default_rng(3).uniform([-20.0, -20.0], [90.0, 50.0], size=(200, 2))
+    fn = jax.jit(jax.vmap(lambda q, r: land_clearance(q, chart, r), in_axes=(0, None)))
+    for reach in (4.0, 50.0):
+        want = np.minimum([land.distance(shapely.Point(q)) for q in pts], reach)
+        np.testing.assert_allclose(np.asarray(fn(jnp.asarray(pts), reach)), want, rtol=0, atol=1e-9)
+    assert np.any(want == 0.0) and np.any((want > 0.0) & (want < 50.0))   # inside, near and far points drawn
