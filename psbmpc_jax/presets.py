@@ -65,6 +65,18 @@ PRESETS: dict[str, MPCPreset] = {
         speed_sets=PAPER_SPEEDS,
         course_sets_deg=(SAKSHAUG_COURSES_DEG, SAKSHAUG_COURSES_DEG),
     ),
+    "tengesdal2020": MPCPreset(
+        name="tengesdal2020",
+        description="Seed 004 (Tengesdal, Brekke & Johansen 2020; 30 m vessels at 9 m/s): T 200 s, dt 0.5 s, "
+                    "d_safe 40 m, 39 behaviours (one maneuver, speeds 1/0.5/0, courses +-90 deg in 15 deg steps), "
+                    "own-ship T_chi 3 s, T_U 5 s, LOS lookahead 150 m, n_ps 1 (straight-line tracks)",
+        config=PlannerConfig(T=200.0, dt=0.5),
+        params=Params(d_safe=40.0, d_close=200.0, r_ct=40.0, os_T_chi=3.0, os_T_U=5.0, ob_T_chi=3.0, ob_T_U=5.0,
+                      os_lookahead=150.0, ob_lookahead=150.0, os_R_a=30.0, ob_R_a=30.0),
+        speed_sets=((1.0, 0.5, 0.0),),
+        course_sets_deg=(SAKSHAUG_COURSES_DEG,),
+        n_ps=1,
+    ),
 }
 
 _CONFIG_FIELDS = tuple(f.name for f in dataclasses.fields(PlannerConfig))

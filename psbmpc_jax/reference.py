@@ -18,6 +18,7 @@ Frame: NED (x north, y east) [m], course from north, clockwise positive [rad].
 
 from __future__ import annotations
 
+import inspect
 import math
 from dataclasses import dataclass, field
 from functools import lru_cache
@@ -706,7 +707,8 @@ def evaluate_reference(situation: Situation, behaviours, params: Params = Params
             for ``ce``; ignored for ``quadrature``.
         extra_terms: cost terms beyond the paper's four (:func:`psbmpc_jax.costs.base.cost_term` instances),
             each evaluated through its ``reference(own_traj [N+1, 4], behaviour [n_M, 2], situation, params,
-            config)`` method; their costs are in ``ReferenceResult.extra`` and added to the total.
+            config[, last_offsets])`` method (``last_offsets`` passed when the method takes it); their costs are in
+            ``ReferenceResult.extra`` and added to the total.
     """
     if not isinstance(situation, Situation):
         raise ValueError(f"situation must be a psbmpc_jax.Situation, got {type(situation).__name__}")
@@ -773,7 +775,10 @@ def evaluate_reference(situation: Situation, behaviours, params: Params = Params
         ref = getattr(term, "reference", None)
         if not callable(ref):
             raise ValueError(f"cost term {term.name!r} has no reference(...) counterpart")
-        extra[term.name] = np.array([float(ref(own_traj[l], beh[l], situation, params, config)) for l in range(n_b)])
+        # a term that depends on the planner state (e.g. a manoeuvring cost) gets the same last offsets
+        kw = {"last_offsets": tuple(last)} if "last_offsets" in inspect.signature(ref).parameters else {}
+        extra[term.name] = np.array([float(ref(own_traj[l], beh[l], situation, params, config, **kw))
+                                     for l in range(n_b)])
         total = total + extra[term.name]
     return ReferenceResult(
         total=total, do=H_do, colregs=H_col, so=H_so, path=H_p, best=int(np.argmin(total)),

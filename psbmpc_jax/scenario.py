@@ -32,15 +32,21 @@ from . import scenario_checks as limits
 from .charts import BUILTIN_CHARTS, areal_parts, count_vertices, load_chart, lonlat_to_utm, to_ring_sets
 from .checks import MAX_SPEED_MPS, integer, multiple_of, show
 from .geo import LATLON_MAX_DISTANCE_M, check_latlon, latlon_to_ned
+from .methods import SBMPC_PRESETS, SbmpcSettings
 from .params import Params, PlannerConfig, validate_params
 from .situation import MAX_N_PS
 
-COLAV_MODES = ("none", "psbmpc")
-#: Own-ship controllers (``mpc.method``): plain PSB-MPC, PSB-MPC grid search + gradient refinement, Smooth-SBMPC
-#: (seed 000) and its initialisation stage alone (the paper's "original SB-MPC", Sim 01).
-METHODS = ("psbmpc", "psbmpc_refine", "smooth_sbmpc", "sbmpc_init")
+#: Controllers (``mpc.method`` for the own-ship, ``colav`` per ship): plain PSB-MPC, PSB-MPC grid search + gradient
+#: refinement, Smooth-SBMPC (seed 000) and its initialisation stage alone (the paper's "original SB-MPC", Sim 01),
+#: the original SB-MPC and the PSB-MPC of seed 004 (:mod:`psbmpc_jax.methods`); the closed-loop registry is
+#: :data:`psbmpc_jax.sim.methods.REGISTRY`.
+METHODS = ("psbmpc", "psbmpc_refine", "smooth_sbmpc", "sbmpc_init", "sbmpc", "psbmpc_2020")
+#: Values of a ship's ``colav``: no collision avoidance, or a method.
+COLAV_MODES = ("none",) + METHODS
 #: The methods of seed 000 (their own model and tuning; the PSB-MPC preset only supplies defaults).
 SMOOTH_METHODS = ("smooth_sbmpc", "sbmpc_init")
+#: Methods only the own-ship may run (the Smooth-SBMPC planner plans ship 0).
+OWN_SHIP_ONLY_METHODS = SMOOTH_METHODS
 #: The preset a smooth-method file without ``mpc.preset`` gets its defaults from (5 m river vessels).
 SMOOTH_DEFAULT_PRESET = "nidelva"
 
@@ -62,8 +68,9 @@ class ShipSpec:
         length, width: hull size [m].
         T_chi, T_U: autopilot time constants of the true motion [s].
         lookahead, R_a: LOS lookahead distance and waypoint acceptance radius [m].
-        colav: ``"none"`` (follows its route) or ``"psbmpc"`` (runs collision avoidance: the own-ship the
-            controller of ``mpc.method``, a target plain PSB-MPC).
+        colav: ``"none"`` (follows its route) or the method of its collision avoidance (one of :data:`METHODS`;
+            the own-ship's is always ``mpc.method``: in the file ``colav: psbmpc`` or no key means "on, with
+            ``mpc.method``"; a target runs the method it names, the smooth ones excepted).
         allow_route_over_land: the own-ship's route may cross land on purpose (its controller must avoid it;
             the loader then warns about such legs instead of refusing them).  Targets: always False.
 
@@ -198,6 +205,8 @@ class MPCSpec:
             plain PSB-MPC).
         smooth, fis, solver, refine: the settings of the other methods (defaults when not in the file; each
             is used only by the methods it belongs to).
+        sbmpc: the settings of ``sbmpc`` and ``psbmpc_2020`` (``mpc.sbmpc``: a preset of
+            :data:`psbmpc_jax.methods.SBMPC_PRESETS` with the file's overrides), used by every ship running one.
     """
 
     preset: str
@@ -211,6 +220,7 @@ class MPCSpec:
     fis: FisSpec = field(default_factory=FisSpec)
     solver: SolverSpec = field(default_factory=SolverSpec)
     refine: RefineSpec = field(default_factory=RefineSpec)
+    sbmpc: SbmpcSettings = field(default_factory=SbmpcSettings)
 
 
 @dataclass(frozen=True)
@@ -258,7 +268,7 @@ class Scenario:
 # ====================================================================================================== loading
 __all__ = [
     "ShipSpec", "SensorSpec", "MPCSpec", "SmoothSpec", "FisSpec", "SolverSpec", "RefineSpec", "Scenario",
-    "COLAV_MODES", "METHODS", "SMOOTH_METHODS", "KNOT", "SCENARIO_DIR",
+    "COLAV_MODES", "METHODS", "SMOOTH_METHODS", "OWN_SHIP_ONLY_METHODS", "KNOT", "SCENARIO_DIR",
     "scenario_from_dict", "load_scenario", "builtin_scenarios", "estimator_key",
 ]
 
@@ -281,7 +291,7 @@ _TOP_REQUIRED = ("name", "simulation", "mpc", "own_ship")
 _SIM_KEYS = ("dt_s", "duration_s")
 _MC_KEYS = ("runs", "seed")
 _MPC_KEYS = ("preset", "update_period_s", "n_ps", "config", "params", "speed_factors", "course_offsets_deg",
-             "method", "smooth", "fis", "solver", "refine")
+             "method", "smooth", "fis", "solver", "refine", "sbmpc")
 _SMOOTH_KEYS = ("T_init_s", "T_mpc_s", "dt_s", "corridor_half_width_m", "domain_radius_m", "k_ntp", "terminal",
                 "n_starts")
 _FIS_KEYS = ("d_cl_m", "e_cl_m", "eps", "n_y", "completion")
@@ -296,6 +306,7 @@ MAX_METHOD_STEPS = 10_000      # T_init_s / dt_s, T_mpc_s / dt_s
 MAX_STARTS = 64
 MAX_SOLVER_ITERATIONS = 100_000
 MAX_FIS_NY = 100_001
+MAX_SBMPC_INT = 1_000_000      # mpc.sbmpc.n_mc, seed
 _SENSOR_KEYS = ("position_std_m", "period_s", "filter_R_scale", "sigma_a_mps2", "U_max_mps", "U_max_kn",
                 "colav_target_cov")
 _COV_KEYS = ("position_var_m2", "velocity_var_m2s2")
@@ -574,13 +585,66 @@ def _mpc(d, dt: float) -> MPCSpec:
                                  fis_n_y=fis.n_y if "n_y" in given else None)
     return MPCSpec(preset=preset, config=cfg, params=prm, behaviours=np.asarray(behaviours, dtype=float),
                    n_ps=int(n_ps), period=period, method=method, smooth=smooth, fis=fis, solver=solver,
-                   refine=refine)
+                   refine=refine, sbmpc=_sbmpc_spec(d.get("sbmpc", {}) or {}))
+
+
+#: ``mpc.sbmpc`` keys -> :class:`~psbmpc_jax.methods.SbmpcSettings` fields (units in the key where there is one).
+_SBMPC_KEYS = {"d_safe_m": "d_safe", "K_coll": "K_coll", "p": "p", "q": "q", "kappa": "kappa", "d_cl_m": "d_cl",
+               "k_U": "k_U", "Delta_U": "Delta_U", "k_chi_port": "k_chi_port", "k_chi_stbd": "k_chi_stbd",
+               "Delta_chi_port": "Delta_chi_port", "Delta_chi_stbd": "Delta_chi_stbd", "T_c_s": "T_c",
+               "n_mc": "n_mc", "q_P": "q_P", "r_P": "r_P", "V0": "V0", "seed": "seed", "grounding": "grounding"}
+_SBMPC_POSITIVE = ("d_safe_m", "d_cl_m", "T_c_s", "r_P", "V0")
+
+
+def _sbmpc_spec(d) -> SbmpcSettings:
+    w = "mpc.sbmpc"
+    d = _mapping(d, w)
+    _check_keys(d, ("preset",) + tuple(_SBMPC_KEYS), w)
+    preset = d.get("preset", "tengesdal2020")
+    base = SBMPC_PRESETS.get(preset) if isinstance(preset, str) else None
+    if base is None:
+        raise ValueError(f"{w}.preset must be one of {', '.join(SBMPC_PRESETS)}, got {show(preset)}")
+    kw = {}
+    for key, name in _SBMPC_KEYS.items():
+        if key not in d or key == "preset":
+            continue
+        v = d[key]
+        if key == "grounding":
+            if not isinstance(v, bool):
+                raise ValueError(f"{w}.grounding must be true or false, got {show(v)}")
+            kw[name] = v
+        elif key in ("n_mc", "seed"):
+            lo = 1 if key == "n_mc" else 0
+            kw[name] = integer(v, f"{w}.{key}", ge=lo, le=MAX_SBMPC_INT)
+        elif key in _SBMPC_POSITIVE:
+            kw[name] = _number(v, f"{w}.{key}", gt=0)
+        else:
+            kw[name] = _number(v, f"{w}.{key}", ge=0)
+    return dataclasses.replace(base, **kw)
 
 
 def _choice(v, allowed, where: str) -> str:
     if not isinstance(v, str) or v not in allowed:
         raise ValueError(f"{where} must be one of {', '.join(allowed)}, got {show(v)}")
     return v
+
+
+def _colav(value, own: bool, method: str, where: str) -> str:
+    """A ship's method: ``"none"`` or one of :data:`METHODS`.  The own-ship's is ``mpc.method`` (``psbmpc``, the
+    historic "on", or the same name as ``mpc.method``); a target's is the name it gives (not a smooth method)."""
+    if not isinstance(value, str) or value not in COLAV_MODES:
+        raise ValueError(f"{where}.colav must be one of {COLAV_MODES}, got {show(value)}")
+    if value == "none":
+        return value
+    if own:
+        if value not in ("psbmpc", method):
+            raise ValueError(f"{where}.colav: the own-ship runs mpc.method ({method}), got colav {value!r}; set "
+                             f"mpc.method: {value} (or colav: psbmpc, which means 'on, with mpc.method')")
+        return method
+    if value in OWN_SHIP_ONLY_METHODS:
+        raise ValueError(f"{where}.colav: {value} plans the own-ship only; a target may run "
+                         f"{', '.join(m for m in METHODS if m not in OWN_SHIP_ONLY_METHODS)} or none")
+    return value
 
 
 def _smooth_spec(d) -> SmoothSpec:
@@ -910,11 +974,9 @@ def _ship(d, where: str, *, own: bool, ctx: dict) -> ShipSpec:
     U_d = _speed(d, ("nominal_speed_mps", "nominal_speed_kn"), where, required=False, ge=0)
     U_d = speed if U_d is None else U_d
 
-    colav = d.get("colav", "psbmpc" if own else "none")
-    if colav not in COLAV_MODES:
-        raise ValueError(f"{where}.colav must be one of {COLAV_MODES}, got {colav!r}")
-    if colav == "psbmpc" and not U_d > 0:
-        raise ValueError(f"{where}: a ship with colav psbmpc needs a nominal speed > 0 (nominal_speed_mps, "
+    colav = _colav(d.get("colav", "psbmpc" if own else "none"), own, ctx.get("method", "psbmpc"), where)
+    if colav != "none" and not U_d > 0:
+        raise ValueError(f"{where}: a ship with colav {colav} needs a nominal speed > 0 (nominal_speed_mps, "
                          f"default the initial speed), got {U_d:g} m/s")
     over_land = d.get("allow_route_over_land", False)
     if not isinstance(over_land, bool):
@@ -923,7 +985,7 @@ def _ship(d, where: str, *, own: bool, ctx: dict) -> ShipSpec:
         raise ValueError(f"{where}.allow_route_over_land: allowed only for the own-ship (its controller avoids the "
                          f"land; a target follows its route and would sail through it)")
     method = ctx.get("method", "psbmpc")
-    if own and colav == "psbmpc" and method in SMOOTH_METHODS and "speed_plan" in d:
+    if own and colav in SMOOTH_METHODS and "speed_plan" in d:
         raise ValueError(f"{where}.speed_plan: not supported with mpc.method {method} (the Smooth-SBMPC model has "
                          f"one nominal speed, nominal_speed_mps); leave it out or use another method")
 

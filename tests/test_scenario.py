@@ -156,7 +156,7 @@ ERRORS = [
     ("n_ps_float", _set(lambda d: d["mpc"], "n_ps", 5.0), r"mpc.n_ps must be an odd integer >= 1, got 5.0"),
     ("n_ps_bool", _set(lambda d: d["mpc"], "n_ps", True), r"mpc.n_ps must be an odd integer"),
     ("preset_unknown", _set(lambda d: d["mpc"], "preset", "river"),
-     r"mpc.preset must be one of \['nidelva', 'open_sea', 'sakshaug'\], got 'river'"),
+     r"mpc.preset must be one of \['nidelva', 'open_sea', 'sakshaug', 'tengesdal2020'\], got 'river'"),
     ("config_name", _set(lambda d: d["mpc"], "config", {"horizon": 100}),
      r"unknown PlannerConfig field\(s\) \['horizon'\]; allowed: .*'T'"),
     ("params_name", _set(lambda d: d["mpc"], "params", {"dsafe": 5}),
@@ -208,7 +208,7 @@ ERRORS = [
     ("description_type", _top("description", 3), r"description must be a string, got 3"),
     ("targets_not_list", _top("targets", {"name": "TS1"}), r"targets must be a list of ships, got dict"),
     ("own_not_mapping", _top("own_ship", [1, 2]), r"own_ship must be a mapping"),
-    ("colav_bad", _set(tgt, "colav", "mpc"), r"targets\[0\].colav must be one of \('none', 'psbmpc'\), got 'mpc'"),
+    ("colav_bad", _set(tgt, "colav", "mpc"), r"targets\[0\].colav must be one of \('none', 'psbmpc', .*\), got 'mpc'"),
     ("psbmpc_not_moving", lambda d: own(d).update(speed_mps=0), r"own_ship: a ship with colav psbmpc needs a nominal "
                                                                  r"speed > 0"),
     # waypoints of the wrong shape
@@ -557,7 +557,7 @@ def test_builtin_scenario_names():
 def test_every_shipped_scenario_loads(name):
     s = load_scenario(name)
     assert s.name == name and s.source.endswith((f"{name}.yaml", f"{name}.yml"))
-    assert s.own_ship.colav == "psbmpc" and s.own_ship.U_d > 0
+    assert s.own_ship.colav == s.mpc.method and s.own_ship.U_d > 0
     assert s.description and s.d_collision > 0
     for ship in s.ships:
         assert ship.waypoints.shape[0] >= 2 and np.all(np.isfinite(ship.waypoints))

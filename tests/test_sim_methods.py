@@ -129,7 +129,7 @@ def test_preset_is_optional_only_for_the_smooth_methods():
 
 BAD = [
     ("method", with_("mpc.method", "smooth"), r"mpc.method must be one of psbmpc, psbmpc_refine, smooth_sbmpc, "
-                                              r"sbmpc_init, got 'smooth'"),
+                                              r"sbmpc_init, sbmpc, psbmpc_2020, got 'smooth'"),
     ("method_type", with_("mpc.method", 3), r"mpc.method must be one of .*got 3"),
     ("smooth_unknown", with_("mpc.smooth.T_init", 8), r"unknown key 'T_init' in mpc.smooth \(did you mean "
                                                       r"'T_init_s'\?\); allowed keys: T_init_s, T_mpc_s"),
@@ -230,15 +230,15 @@ def test_dispatch_who_runs_what():
     params, samples = None, None
     sc = scenario_from_dict(tiny())
     c = colav.build(sc, "loop", params, samples)
-    assert c.method == "psbmpc" and [type(g).__name__ for g in c.groups] == ["PSBMPCGroup"]
+    assert c.method == "psbmpc" and [type(g).__name__ for g in c.groups] == ["GridGroup"]
     assert c.groups[0].ships == (0,) and c.groups[0].refine_ships == () and c.snapshots
     # a target with its own PSB-MPC keeps it under a smooth own-ship method; the own-ship gets the smooth planner
     d = tiny(method="sbmpc_init")
     d["targets"][0]["colav"] = "psbmpc"
     c = colav.build(scenario_from_dict(d), "loop", params, samples, smooth_planner_cls=colav.SmoothStepPlanner)
-    assert [type(g).__name__ for g in c.groups] == ["SmoothGroup", "PSBMPCGroup"]
-    assert c.groups[1].ships == (1,) and not c.snapshots and list(c.controlled) == [True, True]
-    assert c.groups[0].planner.init_only
+    assert [type(g).__name__ for g in c.groups] == ["GridGroup", "SmoothGroup"]     # registry order
+    assert c.groups[0].ships == (1,) and not c.snapshots and list(c.controlled) == [True, True]
+    assert c.groups[1].planner.init_only and c.methods == ("sbmpc_init", "psbmpc")
     # no collision avoidance on the own-ship: no method, no planner
     d = tiny(method="smooth_sbmpc")
     d["own_ship"]["colav"] = "none"

@@ -1,8 +1,8 @@
 """Which controller runs which ship in the closed-loop simulator, and one MPC update of all of them.
 
-Ship 0 (the own-ship) runs the controller of ``scenario.mpc.method`` (unless its ``colav`` is ``none``); a
-target with ``colav: psbmpc`` always runs plain PSB-MPC, whatever the method, so the traffic is the same when
-own-ship methods are compared:
+Every ship with collision avoidance runs the method its ``colav`` names (the own-ship's is ``mpc.method``); the
+registry :data:`psbmpc_jax.sim.methods.REGISTRY` maps a method to its group, and the ships of one method form
+one group, so their solves batch (one vmapped call per update in ``vmap`` mode):
 
 ===================  ==========================================================================================
 ``psbmpc``           grid search over the behaviour table (:func:`psbmpc_jax.solve.solve`); the first maneuver
@@ -10,8 +10,11 @@ own-ship methods are compared:
 ``psbmpc_refine``    the same grid search, then :func:`psbmpc_jax.refine.refine` (gradient refinement): its
                      per-step controls are applied step by step between two updates (row ``j`` from
                      ``t_update + j * config.dt`` on)
+``sbmpc``            the same grid search with the original SB-MPC cost (:func:`psbmpc_jax.methods.sbmpc_terms`),
+                     straight-line targets
+``psbmpc_2020``      the same grid search with seed 004's cost (:func:`psbmpc_jax.methods.psbmpc2020_terms`)
 ``smooth_sbmpc``     Smooth-SBMPC of seed 000 (:class:`psbmpc_jax.smooth.planner.SmoothSBMPCPlanner`), all runs
-                     of an update in one ``plan_batch`` call; per-step controls at ``mpc.smooth.dt_s``
+                     of an update in one ``plan_batch`` call; per-step controls at ``mpc.smooth.dt_s`` (own-ship)
 ``sbmpc_init``       its initialisation stage alone (``init_only=True``): the paper's "original SB-MPC" (Sim 01)
 ===================  ==========================================================================================
 
@@ -92,16 +95,20 @@ def consistent_sequences(first: np.ndarray, controls: np.ndarray, atol: float = 
 
 
 # ------------------------------------------------------------------------------------------------ PSB-MPC
-@functools.lru_cache(maxsize=8)
-def _batched_solve(config):
+@functools.lru_cache(maxsize=16)
+def _batched_solve(config, terms):
     """vmap of the solve step over the solves of one MPC update (chart, grid and behaviours broadcast)."""
-    return jax.jit(jax.vmap(functools.partial(solve_arrays, config=config), in_axes=(SHARED_AXES, 0, None, None)))
+    return jax.jit(jax.vmap(functools.partial(solve_arrays, config=config, terms=terms),
+                            in_axes=(SHARED_AXES, 0, None, None)))
 
 
-@jax.jit
 def _costs_row(plan: Plan):
-    """The chosen behaviour's cost columns ``[..., 1 + n_terms]`` (total first, then the terms in order)."""
-    return jnp.stack([plan.total] + [plan.costs[name] for name in COST_NAMES[1:]], axis=-1)
+    """The chosen behaviour's cost columns ``[..., len(COST_NAMES)]`` (total first, then the default terms in
+    order; NaN for a column the method's terms do not have)."""
+    total = np.asarray(jax.device_get(plan.total), float)
+    cols = [total] + [np.asarray(jax.device_get(plan.costs[name]), float) if name in plan.costs
+                      else np.full(total.shape, np.nan) for name in COST_NAMES[1:]]
+    return np.stack(cols, axis=-1)
 
 
 def _refine_function():
@@ -119,9 +126,10 @@ class _Solver:
     the chosen behaviour indices, their cost columns and, on request, one situation's full evaluation; the jobs
     flagged ``refine`` are refined after their solve (:func:`psbmpc_jax.refine.refine`)."""
 
-    def __init__(self, mode: str, config, params, samples, refine=None):
+    def __init__(self, mode: str, config, params, samples, refine=None, terms=DEFAULT_TERMS):
         self.mode, self.config, self.params, self.samples = mode, config, params, samples
         self.refine = refine            # (refine function, settings) or None
+        self.terms = tuple(terms)
 
     def _refine_one(self, inputs, plan, state, evaluation):
         """Refine one solve: ``state`` is the planner state passed TO that solve, ``evaluation`` its third output
@@ -138,8 +146,9 @@ class _Solver:
         refined = {}
         if self.mode == "vmap":
             batch_state = jax.tree.map(lambda *a: jnp.stack([jnp.asarray(x) for x in a]), *states)
-            plan, _, ev = _batched_solve(self.config)(stack(packed), batch_state, self.params, self.samples)
-            best, costs = jax.device_get((plan.best, _costs_row(plan)))
+            plan, _, ev = _batched_solve(self.config, self.terms)(stack(packed), batch_state, self.params,
+                                                                  self.samples)
+            best, costs = jax.device_get(plan.best), _costs_row(plan)
             kept = jax.tree.map(lambda a: a[keep], ev) if keep is not None else None
             for n in sorted(refine_jobs):
                 one = functools.partial(lambda n_, a: a[n_], n)
@@ -148,8 +157,8 @@ class _Solver:
         outs, kept, walls = [], None, []
         for n, (inputs, state) in enumerate(zip(packed, states)):
             t0 = time.perf_counter()   # each solve timed up to its decision on the host
-            plan, _, ev = solve(inputs, state, self.params, self.samples, config=self.config)
-            outs.append(jax.device_get((plan.best, _costs_row(plan))))
+            plan, _, ev = solve(inputs, state, self.params, self.samples, config=self.config, terms=self.terms)
+            outs.append((jax.device_get(plan.best), _costs_row(plan)))
             if n in refine_jobs:
                 refined[n] = self._refine_one(inputs, plan, state, ev)
             walls.append(time.perf_counter() - t0)
@@ -162,23 +171,36 @@ class _Solver:
         return (1 if self.mode == "vmap" else n_solves) + n_refined
 
 
-class PSBMPCGroup:
-    """The ships that run PSB-MPC (the own-ship under ``psbmpc`` / ``psbmpc_refine``, targets with ``colav:
-    psbmpc``): every run and ship of an update solved together; ``refine_ships`` are refined after the search."""
+class GridGroup:
+    """The ships of one grid-search method (``psbmpc``, ``psbmpc_refine``, ``sbmpc``, ``psbmpc_2020``; the
+    registry :mod:`psbmpc_jax.sim.methods` builds one per method): every run and ship of an update solved
+    together with the method's cost ``terms``, obstacles predicted with ``n_ps`` scenarios (None: ``mpc.n_ps``;
+    1: straight lines); ``refine_ships`` are refined after the search.  ``samples``: the estimator's table."""
 
-    def __init__(self, ships, mode: str, mpc, params, samples, refine_ships=()):
-        self.ships, self.mpc = tuple(int(i) for i in ships), mpc
+    def __init__(self, ships, mode: str, mpc, params, samples, refine_ships=(), terms=DEFAULT_TERMS,
+                 n_ps: int | None = None, method: str = "psbmpc"):
+        self.ships, self.mpc, self.method = tuple(int(i) for i in ships), mpc, method
         self.refine_ships = tuple(int(i) for i in refine_ships)
+        self.n_ps = n_ps
+        self.terms = tuple(terms)
         refine = None
         if self.refine_ships:
             fn, settings_cls = _refine_function()
             refine = (fn, refine_settings(mpc, settings_cls))
-        self.solver = _Solver(mode, mpc.config, params, samples, refine)
+        self.solver = _Solver(mode, mpc.config, params, samples, refine, self.terms)
+
+    @property
+    def snapshots(self) -> bool:
+        """Whether the own-ship's full evaluation can be kept (the snapshot reads the PSB-MPC terms' details)."""
+        return 0 in self.ships and self.terms == tuple(DEFAULT_TERMS)
 
     def update(self, loop, k: int, keep_job) -> Decisions:
         mpc, config = self.mpc, self.mpc.config
         jobs = [(r, i) for r in range(loop.R) for i in self.ships]
-        packed = [pack(loop.situation(r, i, k), mpc.behaviours, config, grid=loop.grid) for r, i in jobs]
+        if not self.snapshots:
+            keep_job = None
+        packed = [pack(loop.situation(r, i, k, n_ps=self.n_ps), mpc.behaviours, config, grid=loop.grid)
+                  for r, i in jobs]
         states = [PlannerState((loop.u_c[r, i], loop.chi_off[r, i])) for r, i in jobs]
         keep = jobs.index(keep_job) if keep_job in jobs else None
         refine_jobs = [n for n, (_, i) in enumerate(jobs) if i in self.refine_ships]
@@ -372,11 +394,13 @@ class SmoothStepPlanner:
 @dataclass
 class Colav:
     """The controllers of a scenario's ships (:func:`build`): ``groups`` in call order, ``method`` of the
-    own-ship (None when it runs no collision avoidance), ``controlled`` ship mask."""
+    own-ship (None when it runs no collision avoidance), ``controlled`` ship mask, ``methods`` per ship
+    (``"none"`` or a method name)."""
 
     groups: list
     method: str | None
     controlled: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    methods: tuple = ()
 
     def update(self, loop, k: int, keep_job) -> list[Decisions]:
         """One MPC update: every group's decisions for every run."""
@@ -385,26 +409,29 @@ class Colav:
     @property
     def snapshots(self) -> bool:
         """Whether the own-ship's solves can be kept in full (PSB-MPC search of the own-ship)."""
-        return any(isinstance(g, PSBMPCGroup) and 0 in g.ships for g in self.groups)
+        return any(getattr(g, "snapshots", False) for g in self.groups)
+
+    @property
+    def uses_grid(self) -> bool:
+        """Whether any ship runs a grid search (which needs the chart's distance grid in ``grid`` mode)."""
+        return any(isinstance(g, GridGroup) for g in self.groups)
 
 
-def build(scenario, mode: str, params, samples, *, smooth_planner_cls=None) -> Colav:
-    """The controllers of ``scenario``: who runs what (module docstring).  ``params`` / ``samples``: the PSB-MPC
-    parameters as arrays and the estimator's sample table; ``smooth_planner_cls`` replaces
+def build(scenario, mode: str, params, samples, *, smooth_planner_cls=None, key=None) -> Colav:
+    """The controllers of ``scenario``: every ship runs the method its ``colav`` names (the own-ship's is
+    ``mpc.method``), the ships of one method in one group (:data:`psbmpc_jax.sim.methods.REGISTRY`).
+    ``params`` / ``samples``: the PSB-MPC parameters as arrays and the estimator's sample table; ``key``: the
+    PRNG key methods with their own sample tables draw from; ``smooth_planner_cls`` replaces
     :class:`~psbmpc_jax.smooth.planner.SmoothSBMPCPlanner` (same interface)."""
+    from .methods import build_groups
+
     ships = scenario.ships
-    method = scenario.mpc.method if ships[0].colav != "none" else None
-    controlled = np.array([s.colav != "none" for s in ships])
-    psb = [i for i, s in enumerate(ships) if s.colav == "psbmpc" and (i > 0 or method in ("psbmpc", "psbmpc_refine"))]
-    groups = []
-    if method in ("smooth_sbmpc", "sbmpc_init"):
-        groups.append(SmoothGroup(scenario, smooth_planner_cls))
-    if psb:
-        groups.append(PSBMPCGroup(psb, mode, scenario.mpc, params, samples,
-                                  refine_ships=(0,) if method == "psbmpc_refine" else ()))
-    return Colav(groups=groups, method=method, controlled=controlled)
+    methods = tuple(s.colav for s in ships)
+    groups = build_groups(scenario, mode, params, samples, methods, key=key, smooth_planner_cls=smooth_planner_cls)
+    return Colav(groups=groups, method=None if methods[0] == "none" else methods[0],
+                 controlled=np.array([m != "none" for m in methods]), methods=methods)
 
 
-__all__ = ["COST_NAMES", "INFO_NAMES", "POINT_HULL_M", "Decisions", "Colav", "PSBMPCGroup", "SmoothGroup",
+__all__ = ["COST_NAMES", "INFO_NAMES", "POINT_HULL_M", "Decisions", "Colav", "GridGroup", "SmoothGroup",
            "SmoothStepPlanner", "StepPlan", "build", "smooth_arguments", "smooth_planner_class", "refine_settings",
            "tracked_targets", "consistent_sequences"]

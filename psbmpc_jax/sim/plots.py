@@ -45,12 +45,12 @@ def _hull(ship, state, scale):
 
 
 def _ship_label(ship, i: int, method) -> str:
-    """``name (own-ship) [method]`` / ``name [PSB-MPC]`` / ``name (point)``."""
+    """``name (own-ship) [method]`` / ``name [method]`` / ``name (point)``."""
     text = ship.name + (" (own-ship)" if i == 0 else "")
     if i == 0 and ship.colav != "none":
-        text += f" [{method or 'psbmpc'}]"
-    elif ship.colav == "psbmpc":
-        text += " [PSB-MPC]"
+        text += f" [{method or ship.colav}]"
+    elif ship.colav != "none":
+        text += " [PSB-MPC]" if ship.colav == "psbmpc" else f" [{ship.colav}]"
     return text + (" (point)" if getattr(ship, "is_point", False) else "")
 
 

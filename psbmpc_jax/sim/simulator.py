@@ -5,11 +5,11 @@ Per simulation step (``scenario.dt``), for all runs at once (NumPy arrays ``[R, 
 1. every ``sensor.period``: noisy position measurements of the targets update the own-ship's Kalman-filter
    tracks (constant-velocity model, single-point initiation; :mod:`psbmpc_jax.sim.tracker`);
 2. every ``mpc.period``: every ship with collision avoidance plans once (:mod:`psbmpc_jax.sim.colav` says
-   which controller runs which ship: the own-ship the one of ``mpc.method``, targets with ``colav: psbmpc``
-   plain PSB-MPC).  The own-ship sees the targets through its tracks (estimate + covariance); targets that
-   run their own PSB-MPC see the other ships' true states with a small fixed covariance
-   (``sensor.colav_target_cov``).  All PSB-MPC solves of one update -- every run and every PSB-MPC ship -- go
-   to the device together, as one ``vmap``-ed call (``batch="vmap"``) or one call each (``batch="loop"``);
+   which controller runs which ship: each the method its ``colav`` names, the own-ship the one of
+   ``mpc.method``).  The own-ship sees the targets through its tracks (estimate + covariance); targets that
+   plan see the other ships' true states with a small fixed covariance (``sensor.colav_target_cov``).  All
+   solves of one grid-search method in one update -- every run and every ship running it -- go to the
+   device together, as one ``vmap``-ed call (``batch="vmap"``) or one call each (``batch="loop"``);
    the smooth methods plan all runs in one call; the planner state (last applied offsets) is carried per run
    and ship;
 3. the true vessels move one step: LOS guidance on their routes with the controller's course offset and speed
@@ -245,11 +245,11 @@ class _ClosedLoop:
         dtype = np.dtype(config.dtype)
         # which controller runs which ship (colav.py); the PSB-MPC group, if any, gets the solver's inputs
         self.colav = colav_mod.build(scenario, mode, params_as_arrays(mpc.params, dtype),
-                                     standard_normal_table(key, config, dtype))
+                                     standard_normal_table(key, config, dtype), key=key)
         self.controlled = self.colav.controlled
         self.grid, self.grid_bounds = None, None
         region, self.reach = grid_region(scenario, [s.waypoints for s in ships])
-        uses_grid = any(isinstance(g, colav_mod.PSBMPCGroup) for g in self.colav.groups)
+        uses_grid = self.colav.uses_grid
         if config.grounding_mode == "grid" and scenario.polygons and uses_grid:
             reach = self.reach
             self.grid = build_distance_grid(scenario.polygons, config.grid_spacing, config.grid_margin, dtype=dtype,
@@ -280,9 +280,10 @@ class _ClosedLoop:
         pos_var, vel_var = sensor.colav_target_cov
         self.true_cov = np.diag([pos_var, pos_var, vel_var, vel_var])
 
-    def situation(self, r: int, i: int, k: int) -> Situation:
+    def situation(self, r: int, i: int, k: int, n_ps: int | None = None) -> Situation:
         """What ship ``i`` of run ``r`` plans with at step ``k``: its remaining route from the active segment,
-        the others through the own-ship's tracks (ship 0) or as true states with a small covariance."""
+        the others through the own-ship's tracks (ship 0) or as true states with a small covariance, predicted
+        with ``n_ps`` scenarios each (None: ``mpc.n_ps``; 1: straight lines)."""
         s = self.ships[i]
         z = self.seg[r, i]
         own = OwnShip(state=self.states[r, i, k], waypoints=self.routes_ext[i, z: self.n_wp[i]],
@@ -299,7 +300,8 @@ class _ClosedLoop:
                 cov = self.true_cov
             # a point target (length_m: 0) enters with a negligible hull: the planner needs a positive size
             obstacles.append(Obstacle(state=est, cov=cov, length=max(o.length, POINT_HULL_M),
-                                      width=max(o.width, POINT_HULL_M), n_ps=self.sc.mpc.n_ps))
+                                      width=max(o.width, POINT_HULL_M),
+                                      n_ps=self.sc.mpc.n_ps if n_ps is None else n_ps))
         return Situation(own, tuple(obstacles), self.sc.polygons)
 
     def measure(self, k: int) -> None:
@@ -463,7 +465,7 @@ def run_metrics(result: SimulationResult, r: int) -> dict:
     their own PSB-MPC must not collide with each other either)."""
     sc = result.scenario
     states = result.states[r]
-    if sc.own_ship.colav != "psbmpc":
+    if sc.own_ship.colav == "none":
         own_solves = []
     elif result.solve_wall is not None:      # this run's own-ship solves (measured one by one in the loop)
         own_solves = [float(w) for w in result.solve_wall[r, 0] if np.isfinite(w)]
@@ -490,10 +492,10 @@ def run_metrics(result: SimulationResult, r: int) -> dict:
             d = np.hypot(*(states[i, :, :2] - states[j, :, :2]).T)
             name = f"{ships[i].name}-{ships[j].name}"
             pairs[name] = float(d.min())
-            if "psbmpc" in (ships[i].colav, ships[j].colav):
+            if ships[i].colav != "none" or ships[j].colav != "none":
                 controlled.append(name)
     out["pair_min_distance_m"] = pairs
-    # a collision counts against the method only if one of the two ships runs PSB-MPC; two route-following
+    # a collision counts against the method only if one of the two ships plans; two route-following
     # targets meeting each other is part of the scenario (reported, not counted)
     out["pair_collisions"] = [k for k in controlled if pairs[k] < sc.d_collision]
     out["uncontrolled_pair_collisions"] = [k for k in pairs if k not in controlled and pairs[k] < sc.d_collision]

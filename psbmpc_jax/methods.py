@@ -1,0 +1,170 @@
+"""The SB-MPC family as cost-term sets of the one grid search (:func:`psbmpc_jax.solve.solve`).
+
+Every method below searches the same behaviour table with the same evaluator; only the cost terms (and the
+obstacle prediction they assume) differ -- one objective, several aggregations (SPEC_SEEDS §5.2):
+
+===============  ===========================================================================================
+``psbmpc``       the PSB-MPC cost of Tengesdal et al. 2022 (:data:`psbmpc_jax.evaluate.DEFAULT_TERMS`):
+                 Σ_i w_i Σ_s P_s max_k(C P̂ e^{−t/T_d}) + κ-COLREGS + grounding + path; LOS scenarios
+``sbmpc``        the original SB-MPC (Johansen et al. 2016 as restated by seeds 000/001/002/004, SPEC §0.2):
+                 max_i max_{k≥1} (K_coll‖Δv‖²·R + κ·μ) + Γ, with the ad hoc risk R = k^{−p}(d_safe/d)^q inside
+                 d_safe, the Boolean COLREGS indicator μ, Γ of Tengesdal et al. 2020 eqs. (10)-(13);
+                 straight-line (constant-velocity) targets, one scenario
+``psbmpc_2020``  the first probabilistic SB-MPC (Tengesdal, Brekke & Johansen 2020, eq. 20):
+                 max_i (Σ_k C·P̂·e^{−(t_k + t_cpa − t₀)/T_c} + κ Σ_k μ) + Γ, P̂ the Monte-Carlo 4-D CPA
+                 probability smoothed by a scalar Kalman filter along the horizon
+                 (:mod:`psbmpc_jax.costs.mcskf`), the track covariance held constant; straight-line targets
+===============  ===========================================================================================
+
+Both SB-MPC variants optionally add the PSB-MPC grounding term (``grounding=True``; seed 004 has no land,
+g = 0; on a chart the ship would otherwise ignore it).  Their parameters are one frozen
+:class:`SbmpcSettings` (scenario files: ``mpc.sbmpc``); the default preset ``tengesdal2020`` is seed 004's
+Table 1 with the SPEC's proposals for what the paper leaves out (SPEC_SEEDS §4.6).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+# the cost terms are imported where they are built: loading a scenario (which reads SbmpcSettings) must not
+# import JAX (tests/test_scenario_checks.py)
+
+#: Grid-search methods whose cost terms this module builds.
+SBMPC_FAMILY = ("sbmpc", "psbmpc_2020")
+
+
+@dataclass(frozen=True)
+class SbmpcSettings:
+    """Parameters of ``sbmpc`` and ``psbmpc_2020`` (SI units; seed 004 Table 1 unless marked).
+
+    Attributes:
+        d_safe: safety-zone radius [m] (bare, no ship-size addition; Table 1: 40 m).
+        K_coll: collision-cost weight of C = K_coll‖v_o − v_i‖² [(s/m)²] (NOT GIVEN; proposed 1).
+        p, q: exponents of the ad hoc risk R (SB-MPC only; "typical" 1 and 4).
+        kappa: COLREGS weight κ (Table 1: 10).
+        d_cl: COLREGS range of the Boolean indicator [m] (NOT GIVEN; proposed 200).
+        k_U, Delta_U: speed-reduction weight K_u and speed-change weight K_Δu (Table 1: 9, 8).
+        k_chi_port, k_chi_stbd: course-offset weights K_χ [rad⁻²] (Table 1: 1.8, 1.5).
+        Delta_chi_port, Delta_chi_stbd: course-change weights K_Δχ [rad⁻²] (Table 1: 1.2, 0.9); the side is the
+            sign of the NEW offset (eq. 13).
+        T_c: discount time constant of eq. (20) [s] (psbmpc_2020; Table 1: 6).
+        n_mc: Monte-Carlo samples per prediction step (psbmpc_2020; Table 1: 100).
+        q_P, r_P: process and measurement variances of the probability's scalar Kalman filter (Table 1).
+        V0: prior variance of that filter (its prior mean is 0; §5, §7: 0.3).
+        seed: seed of the standard-normal sample table [N + 1, n_mc, 4] (psbmpc_2020; common random numbers for
+            every behaviour, obstacle, ship and solve).
+        grounding: add the PSB-MPC grounding term (``mpc.params`` G1-G4) on a chart.
+    """
+
+    d_safe: float = 40.0
+    K_coll: float = 1.0
+    p: float = 1.0
+    q: float = 4.0
+    kappa: float = 10.0
+    d_cl: float = 200.0
+    k_U: float = 9.0
+    Delta_U: float = 8.0
+    k_chi_port: float = 1.8
+    k_chi_stbd: float = 1.5
+    Delta_chi_port: float = 1.2
+    Delta_chi_stbd: float = 0.9
+    T_c: float = 6.0
+    n_mc: int = 100
+    q_P: float = 5e-5
+    r_P: float = 1e-3
+    V0: float = 0.3
+    seed: int = 0
+    grounding: bool = True
+
+    def __post_init__(self):
+        positive = ("d_safe", "d_cl", "T_c", "r_P", "V0")
+        for name in dataclasses.fields(self):
+            v = getattr(self, name.name)
+            if name.name in ("n_mc", "seed"):
+                lo = 1 if name.name == "n_mc" else 0
+                if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not lo <= v <= MAX_N_MC:
+                    raise ValueError(f"SbmpcSettings.{name.name} must be an integer in [{lo}, {MAX_N_MC}], got {v!r}")
+                continue
+            if name.name == "grounding":
+                if not isinstance(v, bool):
+                    raise ValueError(f"SbmpcSettings.grounding must be true or false, got {v!r}")
+                continue
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not math.isfinite(v):
+                raise ValueError(f"SbmpcSettings.{name.name} must be a finite number, got {v!r}")
+            if name.name in positive and not v > 0:
+                raise ValueError(f"SbmpcSettings.{name.name} must be > 0, got {v!r}")
+            if v < 0:
+                raise ValueError(f"SbmpcSettings.{name.name} must be >= 0, got {v!r}")
+
+    def manoeuvring(self) -> dict:
+        """The weights of Γ (eqs. 10-13) as :class:`~psbmpc_jax.costs.manoeuvring.SmoothManoeuvringTerm` fields."""
+        return dict(k_U=self.k_U, Delta_U=self.Delta_U, k_chi_port=self.k_chi_port, k_chi_stbd=self.k_chi_stbd,
+                    Delta_chi_port=self.Delta_chi_port, Delta_chi_stbd=self.Delta_chi_stbd)
+
+
+#: Upper bound of ``n_mc`` and ``seed`` (plausibility).
+MAX_N_MC = 1_000_000
+
+#: Named parameter sets (``mpc.sbmpc.preset``).
+SBMPC_PRESETS: dict[str, SbmpcSettings] = {
+    # seed 004 Table 1 (30 m vessels at 9 m/s) + SPEC §4.6 proposals (K_coll 1, d_cl 200 m, p 1, q 4)
+    "tengesdal2020": SbmpcSettings(),
+    # the same weights scaled to 5 m river vessels at 2 m/s (Nidelva-like): d_safe and d_cl as the nidelva
+    # preset's d_safe + ship sizes and d_close
+    "river": SbmpcSettings(d_safe=10.0, d_cl=100.0),
+}
+
+
+def sbmpc_settings(preset: str = "tengesdal2020", **overrides) -> SbmpcSettings:
+    """A preset of :data:`SBMPC_PRESETS` with ``overrides`` (field -> value); unknown names raise."""
+    if not isinstance(preset, str) or preset not in SBMPC_PRESETS:
+        raise ValueError(f"sbmpc preset must be one of {', '.join(SBMPC_PRESETS)}, got {preset!r}")
+    names = {f.name for f in dataclasses.fields(SbmpcSettings)}
+    bad = sorted(set(overrides) - names)
+    if bad:
+        raise ValueError(f"unknown SB-MPC setting(s) {bad}; allowed: {', '.join(sorted(names))}")
+    return dataclasses.replace(SBMPC_PRESETS[preset], **overrides)
+
+
+def manoeuvring_term(s: SbmpcSettings):
+    """Γ of seed 004 (eqs. 10-13): linear speed term, |Δu|, the Δχ side from the sign of the new offset
+    (a :class:`~psbmpc_jax.costs.manoeuvring.SmoothManoeuvringTerm`)."""
+    from .costs.manoeuvring import SmoothManoeuvringTerm
+
+    return SmoothManoeuvringTerm(aggregation="max", form="johansen", side="offset", **s.manoeuvring())
+
+
+def sbmpc_terms(s: SbmpcSettings = SbmpcSettings(), *, with_grounding: bool | None = None) -> tuple:
+    """The original SB-MPC: the joint max over (obstacle, k ≥ 1) of K_coll‖Δv‖²R + κμ (crisp R, Boolean μ),
+    plus Γ, plus the grounding term when ``with_grounding`` (default ``s.grounding``)."""
+    from .costs.sbmpc import SbmpcHazardTerm
+
+    hazard = SbmpcHazardTerm(d_safe=s.d_safe, K_coll=s.K_coll, p=s.p, q=s.q, kappa=s.kappa, d_cl=s.d_cl,
+                             aggregation="max", risk="crisp", colregs="boolean")
+    return _with_grounding((hazard, manoeuvring_term(s)), s.grounding if with_grounding is None else with_grounding)
+
+
+def psbmpc2020_terms(s: SbmpcSettings = SbmpcSettings(), *, with_grounding: bool | None = None) -> tuple:
+    """The PSB-MPC of seed 004 (eq. 20): the MCS+KF collision term with its summed COLREGS, plus Γ, plus the
+    grounding term when ``with_grounding`` (default ``s.grounding``)."""
+    from .costs.mcskf import Psbmpc2020Term
+
+    risk = Psbmpc2020Term(d_safe=s.d_safe, K_coll=s.K_coll, kappa=s.kappa, d_cl=s.d_cl, T_c=s.T_c, q_P=s.q_P,
+                          r_P=s.r_P, V0=s.V0, n_mc=s.n_mc, seed=s.seed)
+    return _with_grounding((risk, manoeuvring_term(s)), s.grounding if with_grounding is None else with_grounding)
+
+
+def _with_grounding(terms: tuple, on: bool) -> tuple:
+    if not on:
+        return terms
+    from .costs.grounding_term import GroundingTerm
+
+    return terms + (GroundingTerm(),)
+
+
+__all__ = ["SBMPC_FAMILY", "SbmpcSettings", "SBMPC_PRESETS", "MAX_N_MC", "sbmpc_settings", "manoeuvring_term",
+           "sbmpc_terms", "psbmpc2020_terms"]
