@@ -24,7 +24,9 @@ PSB-MPC ship collision avoidance in JAX.
   psbmpc-jax example  solve the built-in paper-scale head-on situation once (1014 control
                       behaviours, 2 obstacles x 5 prediction scenarios, T = 150 s, dt = 0.5 s):
                       the chosen maneuver, the best behaviours' costs and the solve time
-  psbmpc-jax run      closed-loop Monte Carlo simulation of scenario files, metrics and figures
+  psbmpc-jax run      closed-loop Monte Carlo simulation of scenario files, metrics (with COLREGS
+                      scores) and figures
+  psbmpc-jax evaluate COLREGS safety/compliance scores of saved or user trajectories
   psbmpc-jax bench    runtime benchmark sweeps (JSON Lines records)
   psbmpc-jax report   Markdown report with figures from benchmark records
 
@@ -119,6 +121,15 @@ def build_parser() -> argparse.ArgumentParser:
                                         "and PNG box plots.")
     add_report_arguments(report)
     parser._report_parser = report
+    from .evaltool.cli import add_evaluate_arguments
+
+    ev = sub.add_parser("evaluate", help="COLREGS safety/compliance scores of saved trajectories (EvalTool)",
+                        description="Score recorded trajectories with the COLREGS evaluation of Hagen et al. 2023 "
+                                    "(reconstructed; docs/evaltool.md): the simulator's trajectories.npz / .csv "
+                                    "or output folder, or a user CSV (columns t_s, vessel, north_m, east_m[, "
+                                    "course_deg, speed_mps]). Exit status 2 for a file that cannot be read.")
+    add_evaluate_arguments(ev)
+    parser._evaluate_parser = ev
     return parser
 
 
@@ -402,6 +413,10 @@ def _main(argv) -> int:
         return run_bench(args)
     if args.command == "run":
         return run_scenarios(args, parser._run_parser)
+    if args.command == "evaluate":
+        from .evaltool.cli import run_evaluate
+
+        return run_evaluate(args, parser._evaluate_parser)
     if args.command == "report":
         from .report import run_report
 

@@ -32,6 +32,9 @@ from . import scenario_checks as limits
 from .charts import BUILTIN_CHARTS, areal_parts, count_vertices, load_chart, lonlat_to_utm, to_ring_sets
 from .checks import MAX_SPEED_MPS, integer, multiple_of, show
 from .geo import LATLON_MAX_DISTANCE_M, check_latlon, latlon_to_ned
+from .evaltool.params import PRESETS as EVAL_PRESETS
+from .evaltool.params import EvalParams
+from .evaltool.params import scaled_params
 from .methods import SBMPC_PRESETS, SbmpcSettings
 from .params import Params, PlannerConfig, validate_params
 from .situation import MAX_N_PS
@@ -239,6 +242,8 @@ class Scenario:
         collision_distance: centre-to-centre distance below which two ships collide [m] (default: the
             planner's d_safe).
         source: the file it was loaded from (``None`` if built in code).
+        evaluation: the parameters of the COLREGS evaluation of the runs (:mod:`psbmpc_jax.evaltool`; the file's
+            ``evaluation`` section: a preset and overrides of :class:`~psbmpc_jax.evaltool.EvalParams` fields).
     """
 
     name: str
@@ -255,6 +260,7 @@ class Scenario:
     seed: int = 0
     collision_distance: float | None = None
     source: str | None = None
+    evaluation: EvalParams = field(default_factory=EvalParams)
 
     @property
     def ships(self) -> tuple[ShipSpec, ...]:
@@ -285,7 +291,8 @@ DEFAULT_ROUTE_MIN_M = 1000.0
 CLIP_QUAD_SEGS = 16
 
 
-_TOP_KEYS = ("name", "description", "simulation", "monte_carlo", "collision_distance_m", "mpc", "sensor", "chart",
+_TOP_KEYS = ("name", "description", "simulation", "monte_carlo", "collision_distance_m", "evaluation", "mpc", "sensor",
+             "chart",
              "origin_latlon", "own_ship", "targets")
 _TOP_REQUIRED = ("name", "simulation", "mpc", "own_ship")
 _SIM_KEYS = ("dt_s", "duration_s")
@@ -627,6 +634,25 @@ def _choice(v, allowed, where: str) -> str:
     if not isinstance(v, str) or v not in allowed:
         raise ValueError(f"{where} must be one of {', '.join(allowed)}, got {show(v)}")
     return v
+
+
+def _evaluation(d) -> EvalParams:
+    """The ``evaluation`` section: ``preset`` (default ``default``), ``range_scale`` (> 0, multiplies the
+    preset's stage radii and CPA ranges, :data:`psbmpc_jax.evaltool.params.RANGE_FIELDS`; default 1) and any
+    :class:`EvalParams` field (applied after the scaling)."""
+    d = dict(_mapping(d, "evaluation"))
+    preset = d.pop("preset", "default")
+    if not isinstance(preset, str) or preset not in EVAL_PRESETS:
+        raise ValueError(f"evaluation.preset must be one of {', '.join(EVAL_PRESETS)}, got {show(preset)}")
+    scale = _number(d.pop("range_scale"), "evaluation.range_scale", gt=0, le=1000) if "range_scale" in d else 1.0
+    names = [f.name for f in dataclasses.fields(EvalParams)]
+    for k in d:
+        if k not in names:
+            raise ValueError(f"unknown key {k!r} in evaluation; allowed: preset, range_scale, {', '.join(names)}")
+    try:
+        return scaled_params(preset, scale, **d)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"evaluation: {exc}") from None
 
 
 def _colav(value, own: bool, method: str, where: str) -> str:
@@ -1110,6 +1136,7 @@ def scenario_from_dict(data: dict, base_dir=None, source: str | None = None, *, 
     if "collision_distance_m" in data:
         coll = _number(data["collision_distance_m"], "collision_distance_m", gt=0)
     origin_ll = _origin_latlon(data["origin_latlon"]) if "origin_latlon" in data else None
+    evaluation = _evaluation(data.get("evaluation", {}) or {})
 
     chart = inline = None
     info = dict(source=None, origin=None, crs=None)
@@ -1203,7 +1230,7 @@ def scenario_from_dict(data: dict, base_dir=None, source: str | None = None, *, 
                 n_vertices=int(sum(len(r) for rs in rings for r in rs)))
     return Scenario(name=name, description=description, own_ship=own, targets=targets, sensor=sensor, mpc=mpc,
                     polygons=rings, chart_info=info, dt=dt, duration=duration, runs=runs, seed=seed,
-                    collision_distance=coll, source=source)
+                    collision_distance=coll, source=source, evaluation=evaluation)
 
 
 def estimator_key(scenario: Scenario, seed: int | None = None):

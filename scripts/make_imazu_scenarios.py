@@ -93,6 +93,8 @@ def render_case(case: int, c: dict) -> str:
         "mpc:",
         "  preset: open_sea",
         "  update_period_s: 5",
+        "evaluation:                # COLREGS scores: the default ranges x 100/30 (r_col = the collision distance 100 m)",
+        "  range_scale: 3.33333333",
         "sensor:",
         "  position_std_m: 10",
         f"  period_s: {num(SENSOR_PERIOD_S)}",

@@ -35,6 +35,8 @@ sensor:
   sigma_a_mps2: 0.5
   U_max_mps: 9
 collision_distance_m: 30
+evaluation:
+  preset: default            # open-water ranges (r_col 30 m = the collision distance)
 own_ship:
   name: OS
   position_m: [0, 0]

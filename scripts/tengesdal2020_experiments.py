@@ -102,10 +102,22 @@ def main(argv=None) -> int:
     p.add_argument("--out", default=None, help="output folder (default benchmarks/results/tengesdal2020_<stamp>)")
     p.add_argument("--scenarios", default=",".join(SCENARIOS), help="comma-separated scenario names or paths")
     p.add_argument("--alteration-deg", type=float, default=1.0, help="course offset counted as an alteration")
+    p.add_argument("--sbmpc", action="append", default=[], metavar="FIELD=VALUE",
+                   help="override a psbmpc_jax.methods.SbmpcSettings field for both methods, e.g. T_c=30 "
+                        "(a sensitivity run; repeatable)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     args = p.parse_args(argv)
     if args.runs < 1:
         p.error(f"--runs must be >= 1, got {args.runs}")
+    overrides = {}
+    for item in args.sbmpc:
+        key, sep, value = item.partition("=")
+        if not sep:
+            p.error(f"--sbmpc expects FIELD=VALUE, got {item!r}")
+        try:
+            overrides[key.strip()] = int(value) if key.strip() in ("n_mc", "seed") else float(value)
+        except ValueError:
+            p.error(f"--sbmpc {key}: a number expected, got {value!r}")
 
     import math
 
@@ -116,14 +128,22 @@ def main(argv=None) -> int:
     from psbmpc_jax.sim import simulate
     from psbmpc_jax.sim.output import write_outputs
 
+    import dataclasses
+
     names = [s.strip() for s in args.scenarios.split(",") if s.strip()]
     loaded = {(n, m): load_scenario(n, method=m) for n in names for m in METHODS}       # file errors first
+    if overrides:
+        try:
+            loaded = {k: dataclasses.replace(sc, mpc=dataclasses.replace(
+                sc.mpc, sbmpc=dataclasses.replace(sc.mpc.sbmpc, **overrides))) for k, sc in loaded.items()}
+        except (TypeError, ValueError) as exc:
+            p.error(f"--sbmpc: {exc}")
     stamp = dt.datetime.now(dt.timezone.utc).strftime("%Y%m%dT%H%M%SZ")
     out = pathlib.Path(args.out or REPO / "benchmarks" / "results" / f"tengesdal2020_{stamp}")
     out.mkdir(parents=True, exist_ok=True)
     doc = {"created_utc": stamp, "commit": commit(), "runs": args.runs, "alteration_deg": args.alteration_deg,
            "device": str(jax.devices()[0]), "jax": jax.__version__, "python": platform.python_version(),
-           "machine": platform.machine(), "results": {}}
+           "machine": platform.machine(), "sbmpc_overrides": overrides, "results": {}}
     for (name, method), sc in loaded.items():
         t0 = time.perf_counter()
         res = simulate(sc, runs=args.runs, seed=args.seed, progress=not args.quiet)

@@ -5,13 +5,14 @@ from __future__ import annotations
 
 import json
 import math
+import pathlib
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 from psbmpc_jax.evaltool import (PRESETS, SCORE_NAMES, EvalParams, Tracks, aggregate, evaluate_file,
-                                 evaluate_tracks, get_params, load_runs, load_tracks)
+                                 evaluate_tracks, get_params, load_runs, load_tracks, tracks_from_simulation)
 from psbmpc_jax.evaltool.synthetic import scripted_tracks
 
 HEAD_ON = {"own": dict(start_ne=(0.0, 0.0), course_deg=0.0, speed_mps=1.0, course_knots=[(60, 0), (70, 30)]),
@@ -239,3 +240,95 @@ def test_docs_quick_start_runs_and_prints_what_it_says(capsys):
     promised = re.search(r"^# (ferry .*)$", block, flags=re.M).group(1)
     assert printed == promised
     assert namespace["summary"]["situations"] == {"HO": 1}
+
+
+# ============================================================================= wiring: scenario key, run, CLI
+def _head_on_dict(**evaluation):
+    import yaml
+
+    d = yaml.safe_load((pathlib.Path(__file__).resolve().parents[1] / "scenarios" / "head_on.yaml").read_text())
+    d["simulation"]["duration_s"] = 200
+    if evaluation:
+        d["evaluation"] = evaluation
+    return d
+
+
+def test_scenario_evaluation_section_preset_scale_and_overrides():
+    from psbmpc_jax.evaltool import PRESETS as EP
+    from psbmpc_jax.scenario import load_scenario, scenario_from_dict
+
+    assert load_scenario("head_on").evaluation.r_col_m == pytest.approx(5.0, rel=1e-6)          # 30 m x 1/6
+    assert load_scenario("smooth_000_reconstruction").evaluation == EP["inland_small"]
+    assert load_scenario("tengesdal2020_a").evaluation == EP["default"]
+    sc = scenario_from_dict(_head_on_dict(preset="inland_small", range_scale=2, r_col_m=3))
+    assert (sc.evaluation.r_stage2_m, sc.evaluation.r_nm_m, sc.evaluation.r_col_m) == (160.0, 10.0, 3.0)
+    d = _head_on_dict()
+    d.pop("evaluation", None)
+    assert scenario_from_dict(d).evaluation == EP["default"]
+
+
+@pytest.mark.parametrize("section, match", [
+    ({"preset": "inland"}, r"evaluation.preset must be one of default, inland_small, got 'inland'"),
+    ({"range_scale": 0}, r"evaluation.range_scale must be > 0"),
+    ({"r_stage": 3}, r"unknown key 'r_stage' in evaluation; allowed: preset, range_scale, "),
+    ({"r_col_m": -1}, r"evaluation: EvalParams.r_col_m must be"),
+    ([1, 2], r"evaluation must be a mapping"),
+])
+def test_scenario_evaluation_section_errors(section, match):
+    from psbmpc_jax.scenario import scenario_from_dict
+
+    d = _head_on_dict()
+    d["evaluation"] = section
+    with pytest.raises(ValueError, match=match):
+        scenario_from_dict(d)
+
+
+def test_run_outputs_carry_the_scores(tmp_path):
+    """``write_outputs`` puts the evaluation of every run into metrics.json and a table into summary.md; the
+    per-run scores are those of evaluate_tracks on the same trajectories, and ``psbmpc-jax evaluate`` on the
+    written trajectories gives the same numbers."""
+    import json
+
+    from psbmpc_jax.cli import main
+    from psbmpc_jax.scenario import scenario_from_dict
+    from psbmpc_jax.sim import simulate
+    from psbmpc_jax.sim.output import write_outputs
+
+    sc = scenario_from_dict(_head_on_dict(range_scale=0.16666667))
+    res = simulate(sc, runs=2)
+    write_outputs(res, tmp_path, figures=False, trajectories=True)
+    doc = json.loads((tmp_path / "metrics.json").read_text())
+    ev = doc["colregs_evaluation"]
+    assert ev["pairs"] == "own" and ev["params"]["r_col_m"] == pytest.approx(5.0)
+    assert ev["aggregate"]["runs"] == 2 and len(ev["runs"]) == 2
+    direct = [evaluate_tracks(tr, sc.evaluation) for tr in tracks_from_simulation(res)]
+    for run, evd in zip(ev["runs"], direct):
+        assert [e["situation"] for e in run] == [e.situation for e in evd.encounters] == ["HO"]
+        assert run[0]["scores"]["S_sit"] == pytest.approx(evd.encounters[0].scores.S_sit, rel=1e-5)
+        assert run[0]["scores"]["S_safety"] == pytest.approx(evd.encounters[0].scores.S_safety, rel=1e-5)
+    md = (tmp_path / "summary.md").read_text()
+    assert "## COLREGS evaluation" in md and "| TS1 | HO: 2 | scored: 2 |" in md
+    out = tmp_path / "scores.json"
+    assert main(["evaluate", str(tmp_path / "trajectories.npz"), "--range-scale", "0.16666667", "--out", str(out)]) == 0
+    cli = json.loads(out.read_text())
+    got = [r["encounters"][0]["scores"]["S_sit"] for r in cli["files"][0]["runs"]]
+    assert got == pytest.approx([e.encounters[0].scores.S_sit for e in direct], rel=1e-9)
+
+
+def test_evaluate_cli_errors(tmp_path, capsys):
+    from psbmpc_jax.cli import main
+
+    bad = tmp_path / "bad.csv"
+    bad.write_text("a,b\n1,2\n")
+    assert main(["evaluate", str(bad)]) == 2
+    assert "missing column(s) t_s, vessel, north_m, east_m" in capsys.readouterr().err
+    assert main(["evaluate", str(tmp_path / "none.npz")]) == 2
+    assert "not found" in capsys.readouterr().err
+    for argv, match in ((["--set", "r_stag=3"], "--set: unknown field 'r_stag'"),
+                        (["--set", "r_col_m"], "--set expects FIELD=VALUE"),
+                        (["--set", "r_col_m=abc"], "--set r_col_m: a number expected"),
+                        (["--range-scale", "-1"], "--range-scale must be a finite number > 0"),
+                        (["--set", "r_col_m=500"], "EvalParams.r_nm_m must be in (500, inf) (above r_col_m)")):
+        with pytest.raises(SystemExit) as exc:
+            main(["evaluate", str(bad), *argv])
+        assert exc.value.code == 2 and match in capsys.readouterr().err, argv

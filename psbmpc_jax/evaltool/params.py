@@ -18,7 +18,8 @@ import dataclasses
 import math
 from dataclasses import dataclass, fields
 
-__all__ = ["EvalParams", "PRESETS", "get_params", "preset_names", "STAND_ON_MODES", "DELAY_REFERENCES"]
+__all__ = ["EvalParams", "PRESETS", "get_params", "preset_names", "STAND_ON_MODES", "DELAY_REFERENCES",
+           "RANGE_FIELDS", "scaled_params"]
 
 #: Allowed values of :attr:`EvalParams.stand_on_mode` (SPEC §3.6, §7.5).
 STAND_ON_MODES = ("reproduce", "intended")
@@ -251,3 +252,18 @@ def get_params(preset: str | EvalParams | None = "default", **overrides) -> Eval
     else:
         raise ValueError(f"unknown EvalTool preset {preset!r}; known: {', '.join(PRESETS)}")
     return base.replace(**overrides) if overrides else base
+
+
+#: The stage radii and CPA ranges (the fields :func:`scaled_params` multiplies).
+RANGE_FIELDS = ("r_stage2_m", "r_stage3_m", "r_stage4_m", "r_pref_m", "r_min_m", "r_nm_m", "r_col_m")
+
+
+def scaled_params(preset: str | EvalParams | None = "default", range_scale: float = 1.0, **overrides) -> EvalParams:
+    """:func:`get_params` with the preset's :data:`RANGE_FIELDS` multiplied by ``range_scale`` (> 0) before the
+    ``overrides`` apply: one knob to carry the open-water ranges to another ship size (e.g. 5/30 for vessels whose
+    collision distance is 5 m against the default r_col of 30 m)."""
+    if isinstance(range_scale, bool) or not isinstance(range_scale, (int, float)) or not (
+            math.isfinite(range_scale) and range_scale > 0):
+        raise ValueError(f"range_scale must be a finite number > 0, got {range_scale!r}")
+    base = get_params(preset)
+    return base.replace(**({k: getattr(base, k) * range_scale for k in RANGE_FIELDS} | overrides))

@@ -5,6 +5,7 @@ the figures of :mod:`psbmpc_jax.sim.plots` and, on request, every run's trajecto
 from __future__ import annotations
 
 import csv
+import dataclasses
 import datetime as _dt
 import json
 import math
@@ -23,7 +24,7 @@ METRICS_DIGITS = 6
 
 __all__ = ["SCHEMA", "TRAJECTORY_SCHEMA", "METRICS_DIGITS", "Trajectories", "write_outputs", "write_index",
            "write_trajectories", "load_trajectories", "summary_markdown", "scenario_info", "provenance",
-           "metrics_document"]
+           "metrics_document", "colregs_evaluation", "evaluation_markdown"]
 
 
 def round_sig(v: float, digits: int) -> float:
@@ -60,7 +61,9 @@ def scenario_info(sc) -> dict:
         "collision_distance_m": sc.d_collision,
         "mpc": {"method": sc.mpc.method, "preset": sc.mpc.preset, "update_period_s": sc.mpc.period,
                 "n_ps": sc.mpc.n_ps, "n_cbs": int(len(sc.mpc.behaviours)), "config": vars(sc.mpc.config).copy(),
-                "params": p.as_dict(), **method_settings(sc.mpc)},
+                "params": p.as_dict(), **method_settings(sc.mpc),
+                **({"sbmpc": dataclasses.asdict(sc.mpc.sbmpc)}
+                   if any(s.colav in ("sbmpc", "psbmpc_2020") for s in sc.ships) else {})},
         "sensor": vars(sc.sensor).copy(),
         "chart": sc.chart_info,
         "ships": [{"name": s.name, "colav": s.colav, "length_m": s.length, "width_m": s.width,
@@ -80,7 +83,59 @@ def method_settings(mpc) -> dict:
         return {"smooth": asdict(mpc.smooth), "fis": asdict(mpc.fis), "solver": mpc.solver.given()}
     if mpc.method == "psbmpc_refine":
         return {"refine": asdict(mpc.refine), "solver": mpc.solver.given()}
+    if mpc.method in ("sbmpc", "psbmpc_2020"):
+        return {"sbmpc": asdict(mpc.sbmpc)}
     return {}
+
+
+def colregs_evaluation(result) -> dict:
+    """The COLREGS evaluation (:mod:`psbmpc_jax.evaltool`, Hagen et al. 2023 reconstructed) of every run of
+    ``result``, with the scenario's ``evaluation`` parameters, own-ship against every target:
+    ``{"params", "pairs", "aggregate", "runs"}`` -- ``aggregate`` per target and over all (counts by situation
+    and status, count/mean/min/max of every score that applies), ``runs`` per run the encounters (target,
+    situation, status, CPA time and range, the scores that apply)."""
+    from ..evaltool import aggregate, evaluate_tracks, tracks_from_simulation
+
+    params = result.scenario.evaluation
+    evs = [evaluate_tracks(tr, params, pairs="own") for tr in tracks_from_simulation(result)]
+    runs = [[{"other": e.other, "situation": e.situation, "status": e.status, "t_cpa_s": e.t_cpa,
+              "r_cpa_m": e.r_cpa, "scores": {k: v for k, v in e.scores.to_dict().items() if v is not None}}
+             for e in ev.encounters] for ev in evs]
+    return {"params": params.as_dict(), "pairs": "own", "aggregate": aggregate(evs), "runs": runs}
+
+
+#: Scores shown in the evaluation table of ``summary.md`` (all are in ``metrics.json``).
+SUMMARY_SCORES = ("S_sit", "S_safety", "S_r", "S_theta")
+#: Penalties listed when they apply (mean over the encounters where they do).
+SUMMARY_PENALTIES = ("P_delay", "P_na_delta", "P_nsb", "P_sts", "P_ah13", "P_ah15", "P_2", "P_3", "P_pt")
+
+
+def evaluation_markdown(ev: dict) -> list[str]:
+    """The ``summary.md`` lines of :func:`colregs_evaluation`: one row per target."""
+    agg = ev["aggregate"]
+    lines = ["## COLREGS evaluation (EvalTool, Hagen et al. 2023 reconstructed; docs/evaltool.md)", "",
+             f"Own-ship against each target, scores in [0, 1] (1 best), mean (min) over the encounters where they "
+             f"apply; stages at {ev['params']['r_stage2_m']:g} / {ev['params']['r_stage3_m']:g} / "
+             f"{ev['params']['r_stage4_m']:g} m, CPA ranges r_pref {ev['params']['r_pref_m']:g}, r_min "
+             f"{ev['params']['r_min_m']:g}, r_nm {ev['params']['r_nm_m']:g}, r_col {ev['params']['r_col_m']:g} m "
+             f"(the scenario's `evaluation` section).", "",
+             "| target | encounters (situation: count) | status | " + " | ".join(SUMMARY_SCORES)
+             + " | penalties (mean where applied) |",
+             "|---|---|---|" + "---|" * len(SUMMARY_SCORES) + "---|"]
+
+    def cell(st):
+        return "—" if not st["n"] else f"{st['mean']:.2f} ({st['min']:.2f})"
+
+    for pair in agg["pairs"]:
+        sc = pair["scores"]
+        pen = [f"{k} {sc[k]['mean']:.2f}" for k in SUMMARY_PENALTIES if sc[k]["n"] and sc[k]["mean"] > 0]
+        sit = ", ".join(f"{k}: {v}" for k, v in pair["situations"].items())
+        status = ", ".join(f"{k}: {v}" for k, v in pair["statuses"].items())
+        lines.append(f"| {pair['other']} | {sit} | {status} | " + " | ".join(cell(sc[k]) for k in SUMMARY_SCORES)
+                     + f" | {', '.join(pen) or '—'} |")
+    if not agg["pairs"]:
+        lines.append("| — | no encounter within r_Stage2 | | " + " | ".join("—" for _ in SUMMARY_SCORES) + " | |")
+    return lines + [""]
 
 
 def provenance() -> dict:
@@ -92,7 +147,9 @@ def _fmt(v, nd=1):
     return "—" if v is None else (f"{v:.{nd}f}" if isinstance(v, float) else str(v))
 
 
-def summary_markdown(result) -> str:
+def summary_markdown(result, evaluation: dict | None = None) -> str:
+    """``summary.md``: the settings, the safety figures per target and the COLREGS evaluation
+    (``evaluation``: :func:`colregs_evaluation` of ``result``, computed when not given)."""
     sc, s = result.scenario, result.summary
     m = sc.mpc
     if m.method in ("smooth_sbmpc", "sbmpc_init"):
@@ -142,18 +199,20 @@ def summary_markdown(result) -> str:
                   f"path length {rng('path_length_m')} m; course {_fmt(s['course_min_deg']['min'])}–"
                   f"{_fmt(s['course_max_deg']['max'])} deg, speed {_fmt(s['speed_min_mps']['min'], 2)}–"
                   f"{_fmt(s['speed_max_mps']['max'], 2)} m/s (extremes over runs).", ""]
+    lines += evaluation_markdown(colregs_evaluation(result) if evaluation is None else evaluation)
     return "\n".join(lines)
 
 
-def metrics_document(result, digits: int | None = METRICS_DIGITS) -> dict:
+def metrics_document(result, digits: int | None = METRICS_DIGITS, evaluation: dict | None = None) -> dict:
     """The content of ``metrics.json`` (JSON-safe): schema, the scenario's settings (exact), the summary, the
-    per-run metrics and the per-update device calls (floats rounded to ``digits`` significant digits), and
-    provenance.  The summary has one count of solves, ``mpc_solves_total``; each run has its own-ship's
-    ``solve_times_s``."""
+    per-run metrics, the per-update device calls, the COLREGS evaluation (:func:`colregs_evaluation`, computed
+    when ``evaluation`` is not given; floats rounded to ``digits`` significant digits), and provenance.  The
+    summary has one count of solves, ``mpc_solves_total``; each run has its own-ship's ``solve_times_s``."""
     summary = {k: v for k, v in result.summary.items() if k != "solves"}   # "solves": older in-memory name
+    evaluation = colregs_evaluation(result) if evaluation is None else evaluation
     doc = {"schema": SCHEMA, "scenario": _clean(scenario_info(result.scenario)),
            "summary": _clean(summary, digits), "runs": _clean(result.metrics, digits),
-           "device_calls": _clean(result.calls, digits)}
+           "device_calls": _clean(result.calls, digits), "colregs_evaluation": _clean(evaluation, digits)}
     doc.update(provenance())
     return doc
 
@@ -167,8 +226,9 @@ def write_outputs(result, out_dir, *, figures: bool = True, plot_runs=None, anim
     Returns ``{name: path}``."""
     out = pathlib.Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    (out / "metrics.json").write_text(json.dumps(metrics_document(result), indent=1) + "\n")
-    (out / "summary.md").write_text(summary_markdown(result))
+    evaluation = colregs_evaluation(result)
+    (out / "metrics.json").write_text(json.dumps(metrics_document(result, evaluation=evaluation), indent=1) + "\n")
+    (out / "summary.md").write_text(summary_markdown(result, evaluation))
     paths = {"metrics": out / "metrics.json", "summary": out / "summary.md"}
     if trajectories:
         for p in write_trajectories(result, out):
