@@ -21,7 +21,7 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from .costs.base import Context, check_terms
+from .costs.base import Context, check_terms, needs_applied
 from .costs.collision import CollisionTerm
 from .costs.colregs import ColregsTerm
 from .costs.grounding_term import GroundingTerm
@@ -72,8 +72,9 @@ class Evaluation(NamedTuple):
 
 
 def context(inputs: SolveInputs, last_offsets, params: Params, config: PlannerConfig, *,
-            dense: bool = False) -> Context:
-    """Rollouts and predictions of one solve: what every cost term reads."""
+            dense: bool = False, applied: bool = False) -> Context:
+    """Rollouts and predictions of one solve: what every cost term reads (``applied``: also the own-ship rollout
+    of ``last_offsets`` held over the horizon, ``Context.own_applied``)."""
     # packed inputs have NumPy leaves: outside jit, NumPy arithmetic would promote int32/float32 (a no-op on
     # traced values)
     inputs = jax.tree.map(jnp.asarray, inputs)
@@ -84,6 +85,10 @@ def context(inputs: SolveInputs, last_offsets, params: Params, config: PlannerCo
     offsets = inputs.behaviours.offsets
     own_path = make_path(own_in.wx, own_in.wy, own_in.n)
     own = ownship_rollouts(own_in.state, own_path, own_in.U_d, offsets, params, n_steps, dt)
+    own_applied = None
+    if applied:
+        held = jnp.broadcast_to(jnp.asarray(last_offsets, dtype), (1, offsets.shape[1], 2))
+        own_applied = ownship_rollouts(own_in.state, own_path, own_in.U_d, held, params, n_steps, dt)
     n_o, n_s = obs_in.probs.shape
     obs = obstacle_scenarios(obs_in.state, obs_in.wx, obs_in.wy, obs_in.n, obs_in.n_ps, n_s, params, n_steps, dt)
     cov = obstacle_covariances(obs_in.cov, params, n_steps, dt)
@@ -92,7 +97,8 @@ def context(inputs: SolveInputs, last_offsets, params: Params, config: PlannerCo
         t=t, offsets=offsets, last_offsets=jnp.asarray(last_offsets, dtype), own=own, obstacles=obs, obs_cov=cov,
         cov_stats=positional_stats(cov), scen_valid=scen_valid,
         radius=params.d_safe + 0.5 * (own_in.length + obs_in.length), zeta_k=obs_in.zeta * params.K_coll,
-        scen_weight=(obs_in.weight * obs_in.mask)[:, None] * obs_in.probs, world=inputs.world, dense=dense)
+        scen_weight=(obs_in.weight * obs_in.mask)[:, None] * obs_in.probs, world=inputs.world, dense=dense,
+        own_applied=own_applied)
 
 
 def cost_terms(ctx: Context, params: Params, samples, config: PlannerConfig, terms=DEFAULT_TERMS):
@@ -109,7 +115,7 @@ def cost_terms(ctx: Context, params: Params, samples, config: PlannerConfig, ter
 def evaluate_arrays(inputs: SolveInputs, last_offsets, params: Params, samples, config: PlannerConfig,
                     terms=DEFAULT_TERMS) -> Evaluation:
     """Un-jitted grid search over ``inputs.behaviours`` (jit it through :func:`evaluate`)."""
-    ctx = context(inputs, last_offsets, params, config)
+    ctx = context(inputs, last_offsets, params, config, applied=needs_applied(terms))
     costs, details, counters = cost_terms(ctx, params, samples, config, terms)
     total = jnp.where(inputs.behaviours.mask, sum(costs.values()), jnp.inf)
     best = jnp.argmin(total)

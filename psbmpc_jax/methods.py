@@ -46,6 +46,8 @@ class SbmpcSettings:
         K_coll: collision-cost weight of C = K_coll‖v_o − v_i‖² [(s/m)²] (NOT GIVEN; proposed 1).
         p, q: exponents of the ad hoc risk R (SB-MPC only; "typical" 1 and 4).
         kappa: COLREGS weight κ (Table 1: 10).
+        lambda_T: weight λ of the COLREGS-transitional term of Johansen et al. 2016 eq. (11) (``sbmpc``; 0 = off,
+            the SPEC's choice; the papers give no value).
         d_cl: COLREGS range of the Boolean indicator [m] (NOT GIVEN; proposed 200).
         k_U, Delta_U: speed-reduction weight K_u and speed-change weight K_Δu (Table 1: 9, 8).
         k_chi_port, k_chi_stbd: course-offset weights K_χ [rad⁻²] (Table 1: 1.8, 1.5).
@@ -65,6 +67,7 @@ class SbmpcSettings:
     p: float = 1.0
     q: float = 4.0
     kappa: float = 10.0
+    lambda_T: float = 0.0
     d_cl: float = 200.0
     k_U: float = 9.0
     Delta_U: float = 8.0
@@ -139,12 +142,14 @@ def manoeuvring_term(s: SbmpcSettings):
 
 
 def sbmpc_terms(s: SbmpcSettings = SbmpcSettings(), *, with_grounding: bool | None = None) -> tuple:
-    """The original SB-MPC: the joint max over (obstacle, k ≥ 1) of K_coll‖Δv‖²R + κμ (crisp R, Boolean μ),
-    plus Γ, plus the grounding term when ``with_grounding`` (default ``s.grounding``)."""
+    """The original SB-MPC: the joint max over (obstacle, k ≥ 1) of K_coll‖Δv‖²R + κμ (+ λT when
+    ``s.lambda_T > 0``) (crisp R, Boolean μ), plus Γ, plus the grounding term when ``with_grounding`` (default
+    ``s.grounding``)."""
     from .costs.sbmpc import SbmpcHazardTerm
 
     hazard = SbmpcHazardTerm(d_safe=s.d_safe, K_coll=s.K_coll, p=s.p, q=s.q, kappa=s.kappa, d_cl=s.d_cl,
-                             aggregation="max", risk="crisp", colregs="boolean")
+                             aggregation="max", risk="crisp", colregs="boolean", transitional=s.lambda_T > 0,
+                             **({"lambda_T": s.lambda_T} if s.lambda_T > 0 else {}))
     return _with_grounding((hazard, manoeuvring_term(s)), s.grounding if with_grounding is None else with_grounding)
 
 

@@ -27,6 +27,7 @@ from functools import partial
 import jax
 import jax.numpy as jnp
 
+from .costs.base import needs_applied
 from .evaluate import DEFAULT_TERMS, context, cost_terms
 from .packing import BehaviourArrays, SolveInputs
 from .params import Params, PlannerConfig
@@ -62,7 +63,7 @@ def objective(controls, inputs: SolveInputs, params: Params, samples, config: Pl
     if last_offsets is None:
         last_offsets = jnp.asarray([1.0, 0.0], controls.dtype)
     one = inputs._replace(behaviours=BehaviourArrays(controls[None], jnp.ones((1,), bool)))
-    ctx = context(one, last_offsets, params, config, dense=True)
+    ctx = context(one, last_offsets, params, config, dense=True, applied=needs_applied(terms))
     costs, _, _ = cost_terms(ctx, params, samples, config, terms)
     costs = {k: v[0] for k, v in costs.items()}
     return sum(costs.values()), costs

@@ -191,6 +191,18 @@ def pair_series(own_traj, tgt_traj, t, Sigma, Z, *, d_safe: float = 40.0, eps_v:
     return {"y": y, "P": P, "t_cpa": tcs, "coll": coll, "mu": mu}
 
 
+def situation_obstacles(situation, params, config) -> list:
+    """``[(scenario trajectories [S, N+1, 4], probabilities [S], covariance [4, 4]), ...]`` of a situation's
+    obstacles (the sequential reference's scenario rollouts; an obstacle with weight 0 gets probability 0)."""
+    from .reference import obstacle_scenarios
+
+    out = []
+    for ob in situation.obstacles:
+        probs = np.asarray(ob.probs, float) * (1.0 if float(ob.weight) > 0 else 0.0)
+        out.append((obstacle_scenarios(ob, params, config), probs, np.asarray(ob.cov, float)))
+    return out
+
+
 def psbmpc2020_cost(own_traj, obstacles, t, Z, *, kappa: float = 10.0, include_t0: bool = True,
                     **pair_kw) -> dict:
     """Eq. (20) without f and g for one own-ship trajectory ``[T, 4]``.

@@ -154,14 +154,52 @@ def colregs_boolean(own, tgt, d_cl: float = 40.0, v_eps: float = 0.05) -> float:
     return 1.0 if (close and starboard and (head_on or (crossed and not overtaken))) else 0.0
 
 
+def applied_trajectory(situation, behaviour, last_offsets, params, config) -> np.ndarray:
+    """The own-ship trajectory ``[N+1, 4]`` of the applied offsets ``last_offsets`` held over every maneuver of
+    ``behaviour``'s shape (the rollout the transitional term compares passing sides against)."""
+    from .reference import ownship_trajectory
+
+    held = np.broadcast_to(np.asarray(last_offsets, float), np.shape(behaviour)).copy()
+    return ownship_trajectory(situation.own_ship, held, params, config)
+
+
+def transitional_situation(own, tgt, d_cl: float) -> bool:
+    """CLOSE ∧ (OVERTAKING ∨ OVERTAKEN ∨ CROSSED) of the present states (x, y, χ, U) (the JAX
+    ``costs.sbmpc.transitional_situation``)."""
+    vo = own[3] * np.array([math.cos(own[2]), math.sin(own[2])])
+    vi = tgt[3] * np.array([math.cos(tgt[2]), math.sin(tgt[2])])
+    L = np.array([tgt[0] - own[0], tgt[1] - own[1]])
+    dot, norms = float(vo @ vi), float(own[3] * tgt[3])
+    if not float(L @ L) < d_cl * d_cl:
+        return False
+    same = dot > math.cos(math.radians(67.5)) * norms
+    overtaken = same and tgt[3] > own[3]
+    overtaking = same and own[3] > tgt[3] and float(vo @ L) > 0
+    crossed = own[3] > 0.05 and dot < math.cos(math.radians(67.5)) * norms and dot >= -math.cos(math.radians(22.5)) * norms
+    return bool(overtaken or overtaking or crossed)
+
+
+def passing_side(own_traj, tgt_traj) -> int:
+    """+1 / −1 / 0: the side (starboard / port / dead ahead or astern) of the target at the closest point of the
+    two trajectories ``[K, 4]`` (first step of the smallest distance)."""
+    d2 = [(b[0] - a[0]) ** 2 + (b[1] - a[1]) ** 2 for a, b in zip(own_traj, tgt_traj)]
+    k = int(np.argmin(d2))
+    a, b = own_traj[k], tgt_traj[k]
+    s = (b[1] - a[1]) * math.cos(a[2]) - (b[0] - a[0]) * math.sin(a[2])
+    return int(np.sign(s))
+
+
 def sbmpc_cost(own_traj, targets, t, *, component: str = "joint", aggregation: str = "max", d_safe: float = 10.0,
                K_coll: float = 1.0, p: float = 1.0, q: float = 4.0, w_coll: float = 0.1, kappa: float = 10.0,
                d_cl: float = 40.0, e_cl: float = 5.0, eps: float = 1e-6, n_y: int = 201,
-               completion: str = "default_false", risk: str = "smooth", colregs: str = "fis") -> float:
+               completion: str = "default_false", risk: str = "smooth", colregs: str = "fis",
+               lambda_T: float = 0.0, applied_traj=None) -> float:
     """Aggregated SB-MPC hazard of one own-ship trajectory ``[T, 4]`` against target trajectories (a list of
     ``[T, 4]``) at times ``t [T]`` (``t[0]`` = τ₀ is skipped).  ``component``: ``"coll"`` (σCR or crisp CR),
     ``"colregs"`` (κμ) or ``"joint"`` (their sum per (target, time)); ``aggregation``: ``"max"`` or ``"sum"``
-    over (target, time); no target gives 0."""
+    over (target, time); no target gives 0.  ``lambda_T > 0`` with ``applied_traj [T, 4]`` (the rollout of the
+    applied offsets) adds λ·T per (target, time) to the joint component: T = 1 when the target is in a
+    transitional situation now and passes on the other side than under the applied offsets (τ ≥ τ₀ + T_s)."""
     if aggregation not in ("max", "sum"):
         raise ValueError(f"aggregation must be 'max' or 'sum', got {aggregation!r}")
     if component not in ("coll", "colregs", "joint"):
@@ -171,6 +209,13 @@ def sbmpc_cost(own_traj, targets, t, *, component: str = "joint", aggregation: s
     first = True
     for tgt_traj in targets:
         tgt_traj = np.asarray(tgt_traj, dtype=float)
+        T_i = 0.0
+        if lambda_T > 0 and component == "joint":
+            if applied_traj is None:
+                raise ValueError("lambda_T > 0 needs applied_traj (the rollout of the applied offsets)")
+            applied = np.asarray(applied_traj, dtype=float)
+            flip = passing_side(own_traj[1:], tgt_traj[1:]) * passing_side(applied[1:], tgt_traj[1:]) < 0
+            T_i = float(flip and transitional_situation(own_traj[0], tgt_traj[0], d_cl))
         for k in range(1, len(own_traj)):
             own, tgt = own_traj[k], tgt_traj[k]
             h = 0.0
@@ -185,6 +230,8 @@ def sbmpc_cost(own_traj, targets, t, *, component: str = "joint", aggregation: s
                 else:
                     raise ValueError(f"colregs must be 'fis' or 'boolean', got {colregs!r}")
                 h += kappa * mu
+            if component == "joint":
+                h += lambda_T * T_i
             if aggregation == "sum":
                 out += h
             elif first or h > out:

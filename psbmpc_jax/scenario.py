@@ -596,7 +596,8 @@ def _mpc(d, dt: float) -> MPCSpec:
 
 
 #: ``mpc.sbmpc`` keys -> :class:`~psbmpc_jax.methods.SbmpcSettings` fields (units in the key where there is one).
-_SBMPC_KEYS = {"d_safe_m": "d_safe", "K_coll": "K_coll", "p": "p", "q": "q", "kappa": "kappa", "d_cl_m": "d_cl",
+_SBMPC_KEYS = {"d_safe_m": "d_safe", "K_coll": "K_coll", "p": "p", "q": "q", "kappa": "kappa", "lambda_T": "lambda_T",
+               "d_cl_m": "d_cl",
                "k_U": "k_U", "Delta_U": "Delta_U", "k_chi_port": "k_chi_port", "k_chi_stbd": "k_chi_stbd",
                "Delta_chi_port": "Delta_chi_port", "Delta_chi_stbd": "Delta_chi_stbd", "T_c_s": "T_c",
                "n_mc": "n_mc", "q_P": "q_P", "r_P": "r_P", "V0": "V0", "seed": "seed", "grounding": "grounding"}

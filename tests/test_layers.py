@@ -24,7 +24,8 @@ PYPROJECT = PACKAGE_DIR.parent / "pyproject.toml"
 #: Modules allowed to import the reference evaluator besides reference.py itself: the benchmark harness
 #: times the reference (``impl = "reference"`` records) next to the JAX implementation, by design; the smooth
 #: terms' float64 oracle (reference_smooth) builds on it.
-REFERENCE_USERS = {f"{PACKAGE}.reference", f"{PACKAGE}.reference_smooth", f"{PACKAGE}.bench"}
+REFERENCE_USERS = {f"{PACKAGE}.reference", f"{PACKAGE}.reference_smooth", f"{PACKAGE}.reference_mcskf",
+                   f"{PACKAGE}.reference_informed", f"{PACKAGE}.bench"}
 
 
 def _module_name(path: pathlib.Path) -> str:

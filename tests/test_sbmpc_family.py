@@ -258,3 +258,78 @@ def test_seed_004_scenarios_load_and_b_is_the_generators_output():
     assert gen.returncode == 0, gen.stderr
     assert load_scenario("tengesdal2020_a", method="sbmpc").own_ship.colav == "sbmpc"
     assert dataclasses.replace(a.mpc.sbmpc, d_safe=40.0) == a.mpc.sbmpc
+
+
+# ============================================================================= the COLREGS-transitional term
+def _crossing_situation() -> Situation:
+    """Own-ship north at 9 m/s; a target crossing from starboard (heading west) that the straight own-ship
+    passes ahead of, one overtaken target and one stationary object (no transitional situation)."""
+    own = OwnShip(state=[0.0, 0.0, 0.0, 9.0], waypoints=np.array([[0.0, 0.0], [3000.0, 0.0]]), U_d=9.0, length=30.0,
+                  width=6.0)
+    cov = np.diag([25.0, 25.0, 4.0, 4.0])
+    return Situation(own, (Obstacle([250.0, 160.0, 0.0, -6.0], cov, n_ps=1),       # crossing from starboard
+                           Obstacle([-120.0, 15.0, 11.0, 0.0], cov, n_ps=1),       # overtaking us from astern
+                           Obstacle([500.0, -60.0, 0.0, 0.0], cov, n_ps=1)))       # not moving
+
+
+@pytest.mark.parametrize("last", [(1.0, 0.0), (1.0, -0.5236), (0.5, 0.7854)])
+def test_transitional_term_matches_its_reference_and_changes_the_ranking(last):
+    """λT (Johansen 2016 eq. 11, Hagen 2018 reading): the evaluator's SB-MPC hazard with the transitional term
+    equals the float64 reference (which rolls out the applied offsets itself) behaviour by behaviour; it adds
+    exactly λ to some behaviours (those that flip the passing side of a crossing / overtaking target) and
+    nothing to the applied behaviour itself."""
+    cfg = PlannerConfig(T=60.0, dt=0.5, dtype="float64")
+    sit = _crossing_situation()
+    on = sbmpc_terms(SbmpcSettings(lambda_T=7.0, d_cl=400.0), with_grounding=False)
+    off = sbmpc_terms(SbmpcSettings(d_cl=400.0), with_grounding=False)
+    assert on[0].transitional and on[0].needs_applied and not off[0].transitional
+    ev_on = evaluate(pack(sit, SEARCH, cfg), jnp.asarray(last), Params(), None, config=cfg, terms=on)
+    ev_off = evaluate(pack(sit, SEARCH, cfg), jnp.asarray(last), Params(), None, config=cfg, terms=off)
+    ref = ref_mod.evaluate_reference(sit, SEARCH, Params(), cfg, last_offsets=last, extra_terms=on[:1])
+    got = np.asarray(ev_on.costs["sbmpc"])[: len(SEARCH)]
+    np.testing.assert_allclose(got, ref.extra["sbmpc"], rtol=1e-9, atol=1e-9)
+    base = np.asarray(ev_off.costs["sbmpc"])[: len(SEARCH)]
+    added = got - base
+    assert np.all(added >= -1e-9) and np.all(added <= 7.0 + 1e-9)
+    assert np.any(added > 1.0)                                                # some behaviours flip a side
+    same = np.flatnonzero(np.all(np.isclose(SEARCH[:, 0], np.asarray(last), atol=1e-3), axis=1))
+    if same.size:                                                             # the applied behaviour: no flip
+        assert added[same[0]] == pytest.approx(0.0, abs=1e-9)
+
+
+def test_transitional_situations_by_hand():
+    from psbmpc_jax.costs import sbmpc as sb
+
+    def sit(own, tgt, d_cl=500.0):
+        return bool(sb.transitional_situation(*(jnp.asarray(v) for v in own + tgt), d_cl))
+
+    own = (0.0, 0.0, 0.0, 5.0)
+    assert sit(own, (200.0, 150.0, -np.pi / 2, 5.0))                          # crossing from starboard
+    assert not sit(own, (400.0, 0.0, np.pi, 5.0))                             # head-on: not transitional
+    assert sit(own, (-100.0, 10.0, 0.0, 8.0))                                 # overtaken
+    assert sit(own, (100.0, 10.0, 0.0, 2.0))                                  # overtaking (target ahead)
+    assert not sit(own, (-100.0, 10.0, 0.0, 2.0))                             # slower target astern: neither
+    assert not sit(own, (200.0, 150.0, -np.pi / 2, 5.0), d_cl=100.0)          # not close
+    assert not sit(own, (200.0, 150.0, -np.pi / 2, 0.0))                      # not moving
+    side = sb.passing_side(jnp.zeros((3, 1)), jnp.asarray([[0.0], [5.0], [10.0]]), jnp.zeros((3, 1)),
+                           jnp.asarray([[50.0], [20.0], [30.0]]), jnp.asarray([[3.0], [-4.0], [1.0]]))
+    assert float(side[0]) == -1.0                                             # closest at step 1: to port
+
+
+def test_transitional_term_needs_the_applied_rollout_and_is_a_setting():
+    from psbmpc_jax.costs import sbmpc as sb
+
+    with pytest.raises(ValueError, match=r"lambda_T must be finite and in \[0, inf\)"):
+        sb.SbmpcHazardTerm(lambda_T=-1.0, transitional=True)
+    with pytest.raises(ValueError, match=r"transitional must be True or False"):
+        sb.SbmpcHazardTerm(transitional="yes")
+    ctx = sb.Context(t=None, offsets=None, last_offsets=None, own=None, obstacles=None, obs_cov=None, cov_stats=None,
+                     scen_valid=None, radius=None, zeta_k=None, scen_weight=None, world=None, dense=False)
+    with pytest.raises(ValueError, match=r"needs Context.own_applied"):
+        sb.transitional_indicator(ctx)
+    sc = scenario_from_dict(mixed(mpc__sbmpc={"lambda_T": 4}))
+    assert sc.mpc.sbmpc.lambda_T == 4.0
+    hazard = sbmpc_terms(sc.mpc.sbmpc)[0]
+    assert hazard.transitional and hazard.lambda_T == 4.0 and not hazard.smooth
+    with pytest.raises(ValueError, match=r"mpc.sbmpc.lambda_T must be >= 0"):
+        scenario_from_dict(mixed(mpc__sbmpc={"lambda_T": -1}))

@@ -40,7 +40,9 @@ class Context(NamedTuple):
     ``obs_cov [O, T, 4, 4]`` and ``cov_stats`` (S_xx, S_xy, S_yy, σ_max, each ``[O, T]``); ``scen_valid
     [O, S]``; ``radius [O]`` = d_safe + (l_0 + l_i)/2; ``zeta_k [O]`` = ζ_i K_coll; ``scen_weight [O, S]`` =
     w_i P_s (0 for padding); ``world`` the device chart (:class:`~psbmpc_jax.packing.WorldArrays`);
-    ``dense`` (static) selects the dense, gradient-safe layout."""
+    ``dense`` (static) selects the dense, gradient-safe layout; ``own_applied`` the own-ship trajectory of the
+    applied offsets ``last_offsets`` held over the horizon (``[T, 1]``), computed only for terms that declare
+    ``needs_applied`` (the SB-MPC transitional term), else None."""
 
     t: jax.Array
     offsets: jax.Array
@@ -55,6 +57,12 @@ class Context(NamedTuple):
     scen_weight: jax.Array
     world: Any
     dense: bool
+    own_applied: Any = None
+
+
+def needs_applied(terms) -> bool:
+    """Whether any of ``terms`` reads :attr:`Context.own_applied` (a static ``needs_applied`` attribute)."""
+    return any(bool(getattr(t, "needs_applied", False)) for t in terms)
 
 
 class TermValue(NamedTuple):

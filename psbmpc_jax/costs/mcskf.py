@@ -358,17 +358,13 @@ class Psbmpc2020Term:
         ``cov`` and scenario probabilities), with this term's table Z built in ``config.dtype``."""
         import numpy as np
 
-        from .. import reference as ref_mod
         from .. import reference_mcskf as rm
 
         n_t = len(own_traj)
         Z = np.asarray(self.table(n_t, jnp.dtype(config.dtype)), dtype=float)
         t = [k * float(config.dt) for k in range(n_t)]
-        obstacles = []
-        for ob in situation.obstacles:
-            probs = np.asarray(ob.probs, float) * (1.0 if float(ob.weight) > 0 else 0.0)
-            obstacles.append((ref_mod.obstacle_scenarios(ob, params, config), probs, np.asarray(ob.cov, float)))
-        return rm.psbmpc2020_cost(own_traj, obstacles, t, Z, **self._kw())["value"]
+        return rm.psbmpc2020_cost(own_traj, rm.situation_obstacles(situation, params, config), t, Z,
+                                  **self._kw())["value"]
 
 
 __all__ = [

@@ -41,6 +41,8 @@ DEFAULT_KAPPA = 10.0
 DEFAULT_P = 1.0
 DEFAULT_Q = 4.0
 DEFAULT_W_COLL = 0.1          # C-000-1: gate width as a fraction of d_safe (99 % at 0.9 d_safe, 1 % at 1.1 d_safe)
+#: Weight λ of the COLREGS-transitional term (used only with ``transitional=True``; NOT GIVEN in the papers).
+DEFAULT_LAMBDA_T = 10.0
 #: R is evaluated at max(d, RISK_D_FLOOR · d_safe) (finite value and gradient at d = 0).
 RISK_D_FLOOR = 1e-3
 #: The original SB-MPC's own-ship speed guard of HEAD-ON (and, in the library, CROSSED) [m/s].
@@ -120,6 +122,64 @@ def colregs_boolean(own_state, target_state, d_cl=DEFAULT_D_CL):
         raise ValueError(f"states must be [..., 4] (x, y, chi, U), got shapes {o.shape} and {t.shape}")
     return colregs_boolean_xy(o[..., 0], o[..., 1], o[..., 2], o[..., 3], t[..., 0], t[..., 1], t[..., 2],
                               t[..., 3], d_cl)
+
+
+#: cos 67.5° and cos 22.5°, the sector limits of the Boolean COLREGS geometry (eqs. 7-10).
+_COS_67_5 = 0.38268343236508984
+_COS_22_5 = 0.9238795325112867
+
+
+def transitional_situation(own_x, own_y, own_chi, own_U, tgt_x, tgt_y, tgt_chi, tgt_U, d_cl=DEFAULT_D_CL):
+    """Whether a target is in a situation where the COLREGS-transitional term applies (Johansen et al. 2016
+    eq. 11 after Hagen et al. 2018): CLOSE (d < d_cl) ∧ (own-ship OVERTAKING ∨ OVERTAKEN ∨ CROSSED), from the
+    present states (broadcast).  OVERTAKEN: v_o·v_i > cos 67.5° ‖v_o‖‖v_i‖ ∧ ‖v_i‖ > ‖v_o‖; OVERTAKING: the same
+    sector ∧ ‖v_o‖ > ‖v_i‖ ∧ the target ahead (v_o·L > 0); CROSSED: ‖v_o‖ > 0.05 m/s ∧ v_o·v_i < cos 67.5°
+    ‖v_o‖‖v_i‖ and not head-on (v_o·v_i ≥ −cos 22.5° ‖v_o‖‖v_i‖).  A target with no speed is in none."""
+    c, s_ = jnp.cos(own_chi), jnp.sin(own_chi)
+    dot = own_U * tgt_U * (c * jnp.cos(tgt_chi) + s_ * jnp.sin(tgt_chi))
+    norms = own_U * tgt_U
+    dx, dy = tgt_x - own_x, tgt_y - own_y
+    close = dx * dx + dy * dy < d_cl * d_cl
+    same = dot > _COS_67_5 * norms
+    overtaken = same & (tgt_U > own_U)
+    overtaking = same & (own_U > tgt_U) & (c * dx + s_ * dy > 0)
+    crossed = (own_U > V_EPS) & (dot < _COS_67_5 * norms) & (dot >= -_COS_22_5 * norms)
+    return close & (overtaken | overtaking | crossed)
+
+
+def passing_side(own_x, own_y, own_chi, tgt_x, tgt_y):
+    """The side the target passes on, at the closest point of the predicted trajectories: sign of
+    sin(bearing − χ_own) at the time step of the smallest distance (axis 0 is time; +1 starboard, −1 port,
+    0 dead ahead/astern); ties in distance take the first step."""
+    shape = jnp.broadcast_shapes(own_x.shape, tgt_x.shape)
+    ox, oy, oc, tx, ty = (jnp.broadcast_to(a, shape) for a in (own_x, own_y, own_chi, tgt_x, tgt_y))
+    dx, dy = tx - ox, ty - oy
+    k = jnp.argmin(dx * dx + dy * dy, axis=0)[None]
+    take = lambda a: jnp.take_along_axis(a, k, axis=0)[0]                   # noqa: E731
+    chi = take(oc)
+    return jnp.sign(take(dy) * jnp.cos(chi) - take(dx) * jnp.sin(chi))
+
+
+def transitional_indicator(ctx: Context, d_cl=DEFAULT_D_CL):
+    """T [O·S, B] ∈ {0, 1}: target i is in a transitional situation now (:func:`transitional_situation`) and
+    behaviour l makes it pass on the other side than the applied offsets would (:func:`passing_side` of
+    ``ctx.own`` against ``ctx.own_applied``, over τ ≥ τ₀ + T_s).  Constant over the horizon (C-004-7)."""
+    if ctx.own_applied is None:
+        raise ValueError("the transitional term needs Context.own_applied (the rollout of the applied offsets): "
+                         "evaluate with terms that declare needs_applied, through psbmpc_jax.evaluate.context("
+                         "applied=True)")
+    o, x, _, _ = context_pairs(ctx)
+    a = ctx.own_applied
+    ap = tuple(v[1:, None, :] for v in (a.x, a.y, a.chi))                  # [K, 1, 1]
+    side = passing_side(o[0], o[1], o[2], x[0], x[1])                      # [O·S, B]
+    side0 = passing_side(ap[0], ap[1], ap[2], x[0], x[1])                  # [O·S, 1]
+    own0 = tuple(v[0, 0] for v in (ctx.own.x, ctx.own.y, ctx.own.chi, ctx.own.U))     # present state, row 0
+    n_t = ctx.own.x.shape[0]
+    n_os = x[0].shape[1]
+    tg0 = tuple(v.reshape(n_t, n_os)[0] for v in (ctx.obstacles.x, ctx.obstacles.y, ctx.obstacles.chi,
+                                                   ctx.obstacles.U))
+    situation = transitional_situation(*own0, *tg0, d_cl)                  # [O·S]
+    return (situation[:, None] & (side * side0 < 0)).astype(ctx.own.x.dtype)
 
 
 def aggregate(h, aggregation: str = "max", valid=None):
@@ -218,7 +278,7 @@ def context_pairs(ctx: Context):
     return o, x, ctx.t[1:, None, None], ctx.scen_valid.reshape(n_os)
 
 
-def _term_value(ctx: Context, h, aggregation: str, detail: str) -> TermValue:
+def term_value(ctx: Context, h, aggregation: str, detail: str) -> TermValue:
     """Aggregate ``h [K, O·S, B]`` to the term's ``[B]`` value and per-target details ``[B, O, S]``."""
     n_o, n_s = ctx.scen_valid.shape
     _, _, _, valid = context_pairs(ctx)
@@ -277,7 +337,7 @@ class SmoothCollisionTerm:
     def __call__(self, ctx: Context, params, config, samples) -> TermValue:
         o, x, t, _ = context_pairs(ctx)
         coll, _ = pair_components(*o, *x, t, need=("coll",), **self._kw())
-        return _term_value(ctx, coll, self.aggregation, "sbmpc_coll_i")
+        return term_value(ctx, coll, self.aggregation, "sbmpc_coll_i")
 
     def reference(self, own_traj, behaviour, situation, params, config):
         from .. import reference_smooth as rs
@@ -317,7 +377,7 @@ class FuzzyColregsTerm:
     def __call__(self, ctx: Context, params, config, samples) -> TermValue:
         o, x, t, _ = context_pairs(ctx)
         _, mu = pair_components(*o, *x, t, need=("mu",), colregs="fis", **self._kw())
-        return _term_value(ctx, self.kappa * mu, self.aggregation, "colregs_fis_i")
+        return term_value(ctx, self.kappa * mu, self.aggregation, "colregs_fis_i")
 
     def reference(self, own_traj, behaviour, situation, params, config):
         from .. import reference_smooth as rs
@@ -327,16 +387,18 @@ class FuzzyColregsTerm:
                              aggregation=self.aggregation, kappa=self.kappa, colregs="fis", **self._kw())
 
 
-@smooth_cost_term("aggregation", "risk", "colregs", "completion", "n_y")
+@smooth_cost_term("aggregation", "risk", "colregs", "completion", "n_y", "transitional")
 class SbmpcHazardTerm:
-    """The SB-MPC hazard of eq. (2) with one joint aggregation: h = σ_coll·C·R + κ·μ per (target, τ),
+    """The SB-MPC hazard of eq. (2) with one joint aggregation: h = σ_coll·C·R + κ·μ (+ λ·T) per (target, τ),
     ``max`` over (target, τ ≥ τ₀ + T_s) (initialisation stage) or ``sum`` (DOCP, eq. 27; then equal to
     :class:`SmoothCollisionTerm` + :class:`FuzzyColregsTerm`).  ``risk="crisp"`` / ``colregs="boolean"`` give
-    the original SB-MPC pieces (3)-(10) (not smooth).  The transitional term λT (11) is omitted (C-000-9).
-    Details: ``sbmpc_i [B, O, S]``."""
+    the original SB-MPC pieces (3)-(10) (not smooth).  ``transitional=True`` adds the COLREGS-transitional
+    term λ·T of eq. (11) (:func:`transitional_indicator`: the behaviour changes the passing side of a target
+    in an overtaking / overtaken / crossing situation; it needs the rollout of the applied offsets, so the
+    evaluator computes ``Context.own_applied``); off by default (C-000-9).  Details: ``sbmpc_i [B, O, S]``."""
 
     name = "sbmpc"
-    PARAMS = ("d_safe", "K_coll", "p", "q", "w_coll", "kappa", "d_cl", "e_cl", "eps")
+    PARAMS = ("d_safe", "K_coll", "p", "q", "w_coll", "kappa", "d_cl", "e_cl", "eps", "lambda_T")
 
     d_safe: float = DEFAULT_D_SAFE
     K_coll: float = DEFAULT_K_COLL
@@ -348,20 +410,29 @@ class SbmpcHazardTerm:
     e_cl: float = DEFAULT_E_CL
     eps: float = DEFAULT_EPS
     n_y: int = DEFAULT_N_Y
+    lambda_T: float = DEFAULT_LAMBDA_T
     aggregation: str = "max"
     risk: str = "smooth"
     colregs: str = "fis"
     completion: str = "default_false"
+    transitional: bool = False
 
     def __post_init__(self):
         _check_collision(self)
         check_param("kappa", self.kappa, lo=0.0)
+        check_param("lambda_T", self.lambda_T, lo=0.0)
         check_fis_params(self.d_cl, self.e_cl, self.eps, self.n_y, self.completion)
         check_choice("colregs", self.colregs, COLREGS_FORMS)
+        if not isinstance(self.transitional, bool):
+            raise ValueError(f"transitional must be True or False, got {self.transitional!r}")
 
     @property
     def smooth(self) -> bool:
-        return self.risk == "smooth" and self.colregs == "fis"
+        return self.risk == "smooth" and self.colregs == "fis" and not self.transitional
+
+    @property
+    def needs_applied(self) -> bool:
+        return self.transitional
 
     def _kw(self):
         return dict(d_safe=self.d_safe, K_coll=self.K_coll, p=self.p, q=self.q, w_coll=self.w_coll, d_cl=self.d_cl,
@@ -371,20 +442,26 @@ class SbmpcHazardTerm:
     def __call__(self, ctx: Context, params, config, samples) -> TermValue:
         o, x, t, _ = context_pairs(ctx)
         coll, mu = pair_components(*o, *x, t, **self._kw())
-        return _term_value(ctx, coll + self.kappa * mu, self.aggregation, "sbmpc_i")
+        h = coll + self.kappa * mu
+        if self.transitional:
+            h = h + self.lambda_T * transitional_indicator(ctx, self.d_cl)[None]
+        return term_value(ctx, h, self.aggregation, "sbmpc_i")
 
-    def reference(self, own_traj, behaviour, situation, params, config):
+    def reference(self, own_traj, behaviour, situation, params, config, last_offsets=(1.0, 0.0)):
         from .. import reference_smooth as rs
 
         t = [k * float(config.dt) for k in range(len(own_traj))]
+        applied = rs.applied_trajectory(situation, behaviour, last_offsets, params, config) if self.transitional else None
         return rs.sbmpc_cost(own_traj, rs.obstacle_targets(situation, params, config), t, component="joint",
-                             aggregation=self.aggregation, kappa=self.kappa, **self._kw())
+                             aggregation=self.aggregation, kappa=self.kappa,
+                             lambda_T=self.lambda_T if self.transitional else 0.0, applied_traj=applied, **self._kw())
 
 
 __all__ = [
     "DEFAULT_D_SAFE", "DEFAULT_K_COLL", "DEFAULT_KAPPA", "DEFAULT_P", "DEFAULT_Q", "DEFAULT_W_COLL", "RISK_D_FLOOR",
     "AGGREGATIONS", "RISK_FORMS", "COLREGS_FORMS", "COMPLETIONS", "coll_slope", "sigma_coll", "adhoc_risk",
     "collision_weight", "collision_hazard", "colregs_boolean_xy", "colregs_boolean", "aggregate", "pair_components",
-    "sbmpc_costs", "smooth_cost_term", "context_pairs", "SmoothCollisionTerm", "FuzzyColregsTerm",
+    "DEFAULT_LAMBDA_T", "transitional_situation", "passing_side", "transitional_indicator",
+    "sbmpc_costs", "smooth_cost_term", "context_pairs", "term_value", "SmoothCollisionTerm", "FuzzyColregsTerm",
     "SbmpcHazardTerm",
 ]

@@ -80,7 +80,7 @@ def dcpa(north, east, course, speed, i: int, j: int, k: int) -> float:
 
 # ---------------------------------------------------------------------------------------------------- scoring
 @dataclass(frozen=True)
-class _Ctx:
+class PairContext:
     """What scoring one encounter needs: the window, the pair geometry, stages, the evaluated vessel's raw
     course/speed and manoeuvres, and its give-way windows with other vessels (for C_x,gw)."""
 
@@ -94,7 +94,7 @@ class _Ctx:
     p: EvalParams
 
 
-def _safety(ctx: _Ctx) -> dict:
+def _safety(ctx: PairContext) -> dict:
     p, k_c = ctx.p, ctx.w.k_c
     r_cpa = float(ctx.g.r[k_c])
     s_r = float(sc.range_score(r_cpa, p))
@@ -103,23 +103,23 @@ def _safety(ctx: _Ctx) -> dict:
     return {"S_safety": s_safe, "S_r": s_r, "S_theta": s_theta, "S_alpha": s_a, "S_beta": s_b}
 
 
-def _course_dev(ctx: _Ctx, lo: int, hi: int, ref: int) -> np.ndarray:
+def _course_dev(ctx: PairContext, lo: int, hi: int, ref: int) -> np.ndarray:
     """wrap(χ_k − χ_ref) for k in [lo, hi] [rad]."""
     return np.asarray(wrap(ctx.course[lo:hi + 1] - ctx.course[ref]), float).reshape(-1)
 
 
-def _rel_speed(ctx: _Ctx, lo: int, hi: int, ref: int) -> np.ndarray:
+def _rel_speed(ctx: PairContext, lo: int, hi: int, ref: int) -> np.ndarray:
     """(U_k − U_ref)/U_ref for k in [lo, hi] (the reference floored at ε_U, and at 1e-9)."""
     u_ref = max(float(ctx.speed[ref]), ctx.p.epsilon_speed_mps, 1e-9)
     return (ctx.speed[lo:hi + 1] - ctx.speed[ref]) / u_ref
 
 
-def _give_way_maneuver(ctx: _Ctx) -> Maneuver | None:
+def _give_way_maneuver(ctx: PairContext) -> Maneuver | None:
     """The first manoeuvre of the evaluated vessel overlapping [k_s, k_c] (SPEC §2.4)."""
     return next((m for m in ctx.maneuvers if m.overlaps(ctx.w.k_s, ctx.w.k_c)), None)
 
 
-def _give_way(ctx: _Ctx, s_safety: float) -> tuple[dict, Maneuver | None, float | None]:
+def _give_way(ctx: PairContext, s_safety: float) -> tuple[dict, Maneuver | None, float | None]:
     """P_delay, the non-apparent penalties and S16 (SPEC §3.2)."""
     p, w, r = ctx.p, ctx.w, ctx.g.r
     m = _give_way_maneuver(ctx)
@@ -135,7 +135,7 @@ def _give_way(ctx: _Ctx, s_safety: float) -> tuple[dict, Maneuver | None, float 
     return out, m, r_man
 
 
-def _head_on(ctx: _Ctx, gw: dict, m: Maneuver | None) -> dict:
+def _head_on(ctx: PairContext, gw: dict, m: Maneuver | None) -> dict:
     """P_nsb, P_sts and S14 (SPEC §3.4)."""
     p, w = ctx.p, ctx.w
     dev = _course_dev(ctx, w.k_s, w.k_c, w.k_s)
@@ -145,7 +145,7 @@ def _head_on(ctx: _Ctx, gw: dict, m: Maneuver | None) -> dict:
     return {"P_nsb": nsb, "P_sts": sts, "S14": s, "S_sit": s}
 
 
-def _stage(ctx: _Ctx, x: int) -> dict:
+def _stage(ctx: PairContext, x: int) -> dict:
     """P_x and its parts for the stand-on vessel in stage x (SPEC §3.6); None entries if the encounter has
     no sample in stage x."""
     p, w = ctx.p, ctx.w
@@ -166,7 +166,7 @@ def _stage(ctx: _Ctx, x: int) -> dict:
     return dict(zip(keys, [px, p_chi, p_up, p_down, comp]))
 
 
-def _port_turn(ctx: _Ctx) -> bool:
+def _port_turn(ctx: PairContext) -> bool:
     """A course manoeuvre overlapping stages 3–4 of [k_s, k_c] with a net port turn of at least Δχ_md, the
     other vessel on the port side (β < 0) at its start (SPEC §3.6)."""
     w = ctx.w
@@ -178,7 +178,7 @@ def _port_turn(ctx: _Ctx) -> bool:
                and ctx.g.beta[m.start] < 0 for m in ctx.maneuvers)
 
 
-def _stand_on(ctx: _Ctx, s_safety: float) -> dict:
+def _stand_on(ctx: PairContext, s_safety: float) -> dict:
     """The stage penalties, P_pt and S17 (SPEC §3.6)."""
     out = {**_stage(ctx, 2), **_stage(ctx, 3)}
     ppt = sc.p_port_turn(_port_turn(ctx), ctx.p)
@@ -187,7 +187,7 @@ def _stand_on(ctx: _Ctx, s_safety: float) -> dict:
     return out
 
 
-def _status(ctx: _Ctx, dcpa_start: float) -> str:
+def _status(ctx: PairContext, dcpa_start: float) -> str:
     w, p = ctx.w, ctx.p
     if not w.complete:
         return "incomplete"
@@ -200,7 +200,7 @@ def _status(ctx: _Ctx, dcpa_start: float) -> str:
     return "scored"
 
 
-def score_window(ctx: _Ctx, names, t, dcpa_start: float) -> Encounter:
+def score_window(ctx: PairContext, names, t, dcpa_start: float) -> Encounter:
     """Score one encounter (every applicable score of SPEC §3; None for the rest)."""
     w, g = ctx.w, ctx.g
     status = _status(ctx, dcpa_start)

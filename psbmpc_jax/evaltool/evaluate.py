@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-from .encounters import _Ctx, dcpa, find_windows, score_window
+from .encounters import PairContext, dcpa, find_windows, score_window
 from .geometry import GIVE_WAY, pair_geometry, stages
 from .maneuvers import detect_maneuvers
 from .params import EvalParams, get_params
 from .results import Evaluation
-from .tracks import Tracks, _own_index, load_runs
+from .tracks import Tracks, own_index, load_runs
 
 __all__ = ["evaluate_tracks", "evaluate_file", "PAIR_MODES"]
 
@@ -43,7 +43,7 @@ def evaluate_tracks(tracks: Tracks, params: EvalParams | str | None = "default",
     p = get_params(params, **overrides)
     if pairs not in PAIR_MODES:
         raise ValueError(f"pairs must be one of {PAIR_MODES}, got {pairs!r}")
-    own_i = tracks.own if own is None else _own_index(own, tracks.names)
+    own_i = tracks.own if own is None else own_index(own, tracks.names)
     tr = tracks.resample(p.sample_interval_s)
     dt = p.sample_interval_s
     man = [detect_maneuvers(tr.course[v], tr.speed[v], dt, p) for v in range(tr.n_vessels)]
@@ -66,7 +66,7 @@ def evaluate_tracks(tracks: Tracks, params: EvalParams | str | None = "default",
         st = stages(g.r, p)
         for w in windows[i, j]:
             spans = [(a, b) for other, a, b in give_way_spans[i] if other != j]
-            ctx = _Ctx(w=w, g=g, stage=st, course=tr.course[i], speed=tr.speed[i], maneuvers=man[i],
+            ctx = PairContext(w=w, g=g, stage=st, course=tr.course[i], speed=tr.speed[i], maneuvers=man[i],
                        give_way_spans=spans, p=p)
             d = dcpa(tr.north, tr.east, tr.course, tr.speed, i, j, w.k_s)
             encounters.append(score_window(ctx, tr.names, tr.t, d))

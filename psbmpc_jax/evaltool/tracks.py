@@ -92,7 +92,7 @@ class Tracks:
         course, speed = np.atleast_2d(np.asarray(course, dtype=float)), np.atleast_2d(np.asarray(speed, dtype=float))
         names = tuple(f"vessel{i}" for i in range(north.shape[0])) if names is None else tuple(str(n) for n in names)
         return cls(t=t, north=north, east=east, course=course, speed=speed, names=names,
-                   own=_own_index(own, names), source=source)
+                   own=own_index(own, names), source=source)
 
     def resample(self, dt: float) -> "Tracks":
         """The tracks linearly interpolated onto t_k = t_0 + k·dt, t_k <= t_end (course through its unwrapped
@@ -183,7 +183,7 @@ def _validate_tracks(tr: Tracks) -> None:
         raise ValueError(f"own must be a vessel index in [0, {tr.north.shape[0] - 1}], got {tr.own!r}")
 
 
-def _own_index(own, names) -> int:
+def own_index(own, names) -> int:
     """Index of the own-ship given as an index or a name."""
     if own is None:
         return 0
@@ -248,7 +248,7 @@ def tracks_from_simulation(sim, own=None, source: str | None = None) -> list[Tra
 
         sim = Trajectories.from_result(sim)
     names = tuple(str(n) for n in sim.ship_names)
-    own_i = _own_index(own, names)
+    own_i = own_index(own, names)
     label = source or sim.scenario or "simulation"
     states = np.asarray(sim.states, float)                 # [R, ships, K+1, 4]
     return [Tracks(t=np.asarray(sim.t, float), north=s[..., 0], east=s[..., 1], course=s[..., 2], speed=s[..., 3],
