@@ -98,7 +98,7 @@ def context(inputs: SolveInputs, last_offsets, params: Params, config: PlannerCo
         cov_stats=positional_stats(cov), scen_valid=scen_valid,
         radius=params.d_safe + 0.5 * (own_in.length + obs_in.length), zeta_k=obs_in.zeta * params.K_coll,
         scen_weight=(obs_in.weight * obs_in.mask)[:, None] * obs_in.probs, world=inputs.world, dense=dense,
-        own_applied=own_applied)
+        own_applied=own_applied, obstacle_r18=obs_in.r18)
 
 
 def cost_terms(ctx: Context, params: Params, samples, config: PlannerConfig, terms=DEFAULT_TERMS):

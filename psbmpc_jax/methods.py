@@ -163,6 +163,24 @@ def psbmpc2020_terms(s: SbmpcSettings = SbmpcSettings(), *, with_grounding: bool
     return _with_grounding((risk, manoeuvring_term(s)), s.grounding if with_grounding is None else with_grounding)
 
 
+#: Γ weights of Informed SB-MPC (SPEC_SEEDS §3.6, proposed: the SB-MPC reference defaults).
+INFORMED_MANOEUVRING = dict(k_U=2.5, Delta_U=2.0, k_chi_port=1.8, k_chi_stbd=1.5, Delta_chi_port=1.2,
+                            Delta_chi_stbd=0.9)
+
+
+def informed_terms(informed=None) -> tuple:
+    """Informed SB-MPC (seed 002, eq. 2): :class:`~psbmpc_jax.costs.informed.InformedSbmpcTerm` (C·R with the
+    bearing-shaped d_safe, Woerner μ, Rule-18 ζ with per-target P_default / P_R18, grounding 𝓖) and Γ of eq. (7)
+    (side from the new offset).  ``informed``: a :class:`psbmpc_jax.scenario.InformedSpec` (its ``classify``,
+    ``circular`` and ``term`` overrides) or None for the defaults."""
+    from .costs.informed import InformedSbmpcTerm
+    from .costs.manoeuvring import SmoothManoeuvringTerm
+
+    kw = {} if informed is None else dict(informed.term, classify=informed.classify, circular=informed.circular)
+    return (InformedSbmpcTerm(**kw),
+            SmoothManoeuvringTerm(aggregation="max", form="johansen", side="offset", **INFORMED_MANOEUVRING))
+
+
 def _with_grounding(terms: tuple, on: bool) -> tuple:
     if not on:
         return terms
@@ -172,4 +190,4 @@ def _with_grounding(terms: tuple, on: bool) -> tuple:
 
 
 __all__ = ["SBMPC_FAMILY", "SbmpcSettings", "SBMPC_PRESETS", "MAX_N_MC", "sbmpc_settings", "manoeuvring_term",
-           "sbmpc_terms", "psbmpc2020_terms"]
+           "sbmpc_terms", "psbmpc2020_terms", "informed_terms", "INFORMED_MANOEUVRING"]

@@ -28,7 +28,7 @@ is a multiple of :data:`ORIGIN_SNAP` (1 km), so it is exact in both dtypes and n
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -60,6 +60,7 @@ class ObstacleArrays(NamedTuple):
     weight: jax.Array
     zeta: jax.Array
     mask: jax.Array
+    r18: Any = None             # [O] bool: Rule-18 priority (Obstacle.rule18); None in hand-built inputs
 
 
 class ChartArrays(NamedTuple):
@@ -299,7 +300,9 @@ def pack(situation: Situation, behaviours: np.ndarray, config, *, capacities: Ca
     obs_probs = np.zeros((o_cap, s_cap))
     obs_weight, obs_zeta = np.zeros(o_cap), np.zeros(o_cap)
     obs_mask = np.zeros(o_cap, dtype=bool)
+    obs_r18 = np.zeros(o_cap, dtype=bool)
     for i, (ob, route) in enumerate(zip(obstacles, routes)):
+        obs_r18[i] = ob.rule18
         obs_state[i], obs_cov[i], obs_length[i] = ob.state, ob.cov, ob.length
         obs_state[i, :2] -= o
         obs_w[i, : len(route)], obs_n[i] = route - o, len(route)
@@ -315,7 +318,8 @@ def pack(situation: Situation, behaviours: np.ndarray, config, *, capacities: Ca
         own=OwnShipArrays(f(own_state), f(own_w[..., 0]), f(own_w[..., 1]), i32([n_w]), f(own.U_d),
                           f(own.length)),
         obstacles=ObstacleArrays(f(obs_state), f(obs_cov), f(obs_length), f(obs_w[..., 0]), f(obs_w[..., 1]),
-                                 i32(obs_n), i32(obs_n_ps), f(obs_probs), f(obs_weight), f(obs_zeta), obs_mask),
+                                 i32(obs_n), i32(obs_n_ps), f(obs_probs), f(obs_weight), f(obs_zeta), obs_mask,
+                                 obs_r18),
         world=world if world is not None else pack_world(situation.polygons, config, caps, grid, origin=o),
         behaviours=(behaviour_arrays if behaviour_arrays is not None
                     else pack_behaviours(behaviours, config, caps)),

@@ -77,6 +77,18 @@ PRESETS: dict[str, MPCPreset] = {
         course_sets_deg=(SAKSHAUG_COURSES_DEG,),
         n_ps=1,
     ),
+    "akdag2022": MPCPreset(
+        name="akdag2022",
+        description="Seed 002 (Akdag, Fossen & Johansen 2022; 116 m PSVs at ~6 m/s, open sea): T 600 s, dt 5 s, "
+                    "39 behaviours (speeds 1/0.5/0, courses +-90 deg in 15 deg steps), kinematic prediction with "
+                    "T_chi 15 s, T_U 30 s (fitted to the 3-DOF PSV model), LOS lookahead 600 m, n_ps 1",
+        config=PlannerConfig(T=600.0, dt=5.0),
+        params=Params(d_safe=120.0, d_close=1800.0, r_ct=100.0, os_T_chi=15.0, os_T_U=30.0, ob_T_chi=15.0,
+                      ob_T_U=30.0, os_lookahead=600.0, ob_lookahead=600.0, os_R_a=150.0, ob_R_a=150.0),
+        speed_sets=((1.0, 0.5, 0.0),),
+        course_sets_deg=(SAKSHAUG_COURSES_DEG,),
+        n_ps=1,
+    ),
 }
 
 _CONFIG_FIELDS = tuple(f.name for f in dataclasses.fields(PlannerConfig))

@@ -43,7 +43,7 @@ from .situation import MAX_N_PS
 #: refinement, Smooth-SBMPC (seed 000) and its initialisation stage alone (the paper's "original SB-MPC", Sim 01),
 #: the original SB-MPC and the PSB-MPC of seed 004 (:mod:`psbmpc_jax.methods`); the closed-loop registry is
 #: :data:`psbmpc_jax.sim.methods.REGISTRY`.
-METHODS = ("psbmpc", "psbmpc_refine", "smooth_sbmpc", "sbmpc_init", "sbmpc", "psbmpc_2020")
+METHODS = ("psbmpc", "psbmpc_refine", "smooth_sbmpc", "sbmpc_init", "sbmpc", "psbmpc_2020", "informed_sbmpc")
 #: Values of a ship's ``colav``: no collision avoidance, or a method.
 COLAV_MODES = ("none",) + METHODS
 #: The methods of seed 000 (their own model and tuning; the PSB-MPC preset only supplies defaults).
@@ -76,6 +76,11 @@ class ShipSpec:
             ``mpc.method``"; a target runs the method it names, the smooth ones excepted).
         allow_route_over_land: the own-ship's route may cross land on purpose (its controller must avoid it;
             the loader then warns about such legs instead of refusing them).  Targets: always False.
+        shares_route: the ship publishes its route and its Rule-18 role to the others every MPC update (route
+            exchange, seed 002; only ``informed_sbmpc`` planners use it).
+        rule18_role: its COLREGS Rule-18 role, one of :data:`RULE18_ROLES` (``pdv``: power-driven, no priority).
+        motion_model: ``"kinematic"`` (the planner's model with autopilot lags ``T_chi``, ``T_U``) or ``"3dof"``
+            (Fossen's manoeuvring model, :mod:`psbmpc_jax.sim.vessel3dof`, preset ``vessel_model``).
 
     A target with ``length == width == 0`` is a point object (seed 000); the own-ship has a hull.
     """
@@ -95,6 +100,10 @@ class ShipSpec:
     R_a: float = 5.0
     colav: str = "none"
     allow_route_over_land: bool = False
+    shares_route: bool = False
+    rule18_role: str = "pdv"
+    motion_model: str = "kinematic"
+    vessel_model: str | None = None
 
     @property
     def is_point(self) -> bool:
@@ -194,6 +203,43 @@ class RefineSpec:
     fis_n_y: int | None = None
 
 
+#: Numeric fields of :class:`psbmpc_jax.costs.informed.InformedSbmpcTerm` that ``mpc.informed.term`` may set
+#: (listed here: loading a scenario must not import JAX; a test keeps the two in step).
+INFORMED_TERM_FIELDS = ("K_coll", "kappa", "rho", "c_dist", "p", "q", "d_close", "K_coll_r18", "kappa_r18", "rho_r18",
+                        "c_dist_r18", "p_r18", "q_r18", "d_close_r18", "k", "l", "m", "n", "gamma", "p_g", "q_g",
+                        "d_static_safe")
+INFORMED_CLASSIFY = ("velocity", "sectors_t0")
+
+
+@dataclass(frozen=True)
+class InformedSpec:
+    """``mpc.informed``: Informed SB-MPC (seed 002; ``informed_sbmpc``).
+
+    Attributes:
+        route_exchange: planners predict a target that shares its route along that route (False: straight lines
+            for every target, the paper's "without route exchange").
+        xtd_threshold: the supervisor falls back to a straight line for a target farther than this from its
+            shared route [m] (STM 2019: 100 m).
+        d_init: the planner is active only while some target is within this range [m]; else it applies (1, 0)
+            and forgets its last offsets (SPEC §3.4).
+        exchange_delay: age of the plans a planner uses [s] (the latest plan published at or before t − delay).
+        exchange_dropout: probability that a published plan is lost (the receiver keeps the last one it got).
+        classify: how the COLREGS situations are found: ``"velocity"`` (per predicted time, C-002-3) or
+            ``"sectors_t0"`` (Woerner sectors at t₀).
+        circular: a circular safety region of radius c_dist instead of the bearing-shaped one (eq. 10).
+        term: overrides of the term's numbers (:data:`INFORMED_TERM_FIELDS`, e.g. ``c_dist``, ``rho_r18``).
+    """
+
+    route_exchange: bool = True
+    xtd_threshold: float = 100.0
+    d_init: float = 2000.0
+    exchange_delay: float = 0.0
+    exchange_dropout: float = 0.0
+    classify: str = "velocity"
+    circular: bool = False
+    term: dict = field(default_factory=dict)
+
+
 @dataclass(frozen=True)
 class MPCSpec:
     """The own-ship's controller and the PSB-MPC tuning every psbmpc ship uses.
@@ -224,6 +270,7 @@ class MPCSpec:
     solver: SolverSpec = field(default_factory=SolverSpec)
     refine: RefineSpec = field(default_factory=RefineSpec)
     sbmpc: SbmpcSettings = field(default_factory=SbmpcSettings)
+    informed: InformedSpec = field(default_factory=InformedSpec)
 
 
 @dataclass(frozen=True)
@@ -273,7 +320,8 @@ class Scenario:
 
 # ====================================================================================================== loading
 __all__ = [
-    "ShipSpec", "SensorSpec", "MPCSpec", "SmoothSpec", "FisSpec", "SolverSpec", "RefineSpec", "Scenario",
+    "ShipSpec", "SensorSpec", "MPCSpec", "InformedSpec", "RULE18_ROLES", "MOTION_MODELS", "VESSEL_MODELS",
+    "INFORMED_TERM_FIELDS", "SmoothSpec", "FisSpec", "SolverSpec", "RefineSpec", "Scenario",
     "COLAV_MODES", "METHODS", "SMOOTH_METHODS", "OWN_SHIP_ONLY_METHODS", "KNOT", "SCENARIO_DIR",
     "scenario_from_dict", "load_scenario", "builtin_scenarios", "estimator_key",
 ]
@@ -298,7 +346,7 @@ _TOP_REQUIRED = ("name", "simulation", "mpc", "own_ship")
 _SIM_KEYS = ("dt_s", "duration_s")
 _MC_KEYS = ("runs", "seed")
 _MPC_KEYS = ("preset", "update_period_s", "n_ps", "config", "params", "speed_factors", "course_offsets_deg",
-             "method", "smooth", "fis", "solver", "refine", "sbmpc")
+             "method", "smooth", "fis", "solver", "refine", "sbmpc", "informed")
 _SMOOTH_KEYS = ("T_init_s", "T_mpc_s", "dt_s", "corridor_half_width_m", "domain_radius_m", "k_ntp", "terminal",
                 "n_starts")
 _FIS_KEYS = ("d_cl_m", "e_cl_m", "eps", "n_y", "completion")
@@ -322,7 +370,8 @@ _ORIGIN_KEYS = ("east", "north", "zone")
 _LATLON_ORIGIN_KEYS = ("lat", "lon")
 _SHIP_KEYS = ("name", "position_m", "position_utm", "position_latlon", "course_deg", "speed_mps", "speed_kn",
               "nominal_speed_mps", "nominal_speed_kn", "waypoints_m", "waypoints_utm", "waypoints_latlon", "speed_plan", "length_m", "width_m", "T_chi_s",
-              "T_U_s", "lookahead_m", "R_a_m", "colav", "allow_route_over_land")
+              "T_U_s", "lookahead_m", "R_a_m", "colav", "allow_route_over_land", "shares_route", "rule18_role",
+              "motion_model", "vessel_model")
 _PLAN_KEYS = ("t_s", "speed_mps", "speed_kn")
 
 
@@ -592,7 +641,38 @@ def _mpc(d, dt: float) -> MPCSpec:
                                  fis_n_y=fis.n_y if "n_y" in given else None)
     return MPCSpec(preset=preset, config=cfg, params=prm, behaviours=np.asarray(behaviours, dtype=float),
                    n_ps=int(n_ps), period=period, method=method, smooth=smooth, fis=fis, solver=solver,
-                   refine=refine, sbmpc=_sbmpc_spec(d.get("sbmpc", {}) or {}))
+                   refine=refine, sbmpc=_sbmpc_spec(d.get("sbmpc", {}) or {}),
+                   informed=_informed_spec(d.get("informed", {}) or {}))
+
+
+_INFORMED_KEYS = ("route_exchange", "xtd_threshold_m", "d_init_m", "exchange_delay_s", "exchange_dropout", "classify",
+                  "circular", "term")
+
+
+def _informed_spec(d) -> InformedSpec:
+    w = "mpc.informed"
+    d = _mapping(d, w)
+    _check_keys(d, _INFORMED_KEYS, w)
+    kw = {}
+    for key in ("route_exchange", "circular"):
+        if key in d:
+            if not isinstance(d[key], bool):
+                raise ValueError(f"{w}.{key} must be true or false, got {show(d[key])}")
+            kw[key] = d[key]
+    for key, name in (("xtd_threshold_m", "xtd_threshold"), ("d_init_m", "d_init")):
+        if key in d:
+            kw[name] = _number(d[key], f"{w}.{key}", gt=0)
+    if "exchange_delay_s" in d:
+        kw["exchange_delay"] = _number(d["exchange_delay_s"], f"{w}.exchange_delay_s", ge=0)
+    if "exchange_dropout" in d:
+        kw["exchange_dropout"] = _number(d["exchange_dropout"], f"{w}.exchange_dropout", ge=0, le=1)
+    if "classify" in d:
+        kw["classify"] = _choice(d["classify"], INFORMED_CLASSIFY, f"{w}.classify")
+    if "term" in d:
+        t = _mapping(d["term"] or {}, f"{w}.term")
+        _check_keys(t, INFORMED_TERM_FIELDS, f"{w}.term")
+        kw["term"] = {k: _number(v, f"{w}.term.{k}", ge=0) for k, v in t.items()}
+    return InformedSpec(**kw)
 
 
 #: ``mpc.sbmpc`` keys -> :class:`~psbmpc_jax.methods.SbmpcSettings` fields (units in the key where there is one).
@@ -1089,7 +1169,35 @@ def _ship(d, where: str, *, own: bool, ctx: dict) -> ShipSpec:
         raise ValueError(f"{where}: length_m and width_m must both be 0 (a point object) or both > 0, got "
                          f"{spec.length:g} and {spec.width:g}")
     ctx.setdefault("default_routes", []).append(wkey is None)
-    return spec
+    return dataclasses.replace(spec, **_exchange_and_motion(d, where))
+
+
+#: Rule-18 roles a ship may declare (``rule18_role``): power-driven (no priority), not under command, restricted
+#: in its ability to manoeuvre, constrained by its draught, engaged in fishing, sailing.
+RULE18_ROLES = ("pdv", "nuc", "ram", "cbd", "fishing", "sailing")
+MOTION_MODELS = ("kinematic", "3dof")
+#: The presets of :mod:`psbmpc_jax.sim.vessel3dof` (named here: loading a scenario must not import JAX).
+VESSEL_MODELS = ("psv_116m", "small_5m")
+
+
+def _exchange_and_motion(d, where: str) -> dict:
+    """``shares_route``, ``rule18_role``, ``motion_model`` and ``vessel_model`` of one ship."""
+    out = {}
+    if "shares_route" in d:
+        if not isinstance(d["shares_route"], bool):
+            raise ValueError(f"{where}.shares_route must be true or false, got {show(d['shares_route'])}")
+        out["shares_route"] = d["shares_route"]
+    if "rule18_role" in d:
+        out["rule18_role"] = _choice(d["rule18_role"], RULE18_ROLES, f"{where}.rule18_role")
+    if "motion_model" in d:
+        out["motion_model"] = _choice(d["motion_model"], MOTION_MODELS, f"{where}.motion_model")
+    if "vessel_model" in d:
+        if out.get("motion_model") != "3dof":
+            raise ValueError(f"{where}.vessel_model: only with motion_model: 3dof")
+        out["vessel_model"] = _choice(d["vessel_model"], VESSEL_MODELS, f"{where}.vessel_model")
+    elif out.get("motion_model") == "3dof":
+        raise ValueError(f"{where}: motion_model 3dof needs vessel_model (one of {', '.join(VESSEL_MODELS)})")
+    return out
 
 
 # ---------------------------------------------------------------------------------------------- public API

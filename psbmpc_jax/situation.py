@@ -173,6 +173,9 @@ class Obstacle:
         probs: scenario probabilities ``[n_ps]`` (non-negative, summing to 1); ``None`` = uniform.
         weight: cost weight ``w_i >= 0``.
         zeta: track-loss modifier ``zeta_i >= 0`` (1 unless the track was lost).
+        rule18: the obstacle has priority under COLREGS Rule 18 (not under command, restricted in its ability
+            to manoeuvre, constrained by draught, fishing, sailing) as it shared; read by the Informed SB-MPC
+            term (its P_R18 parameter set).
     """
 
     state: np.ndarray
@@ -184,8 +187,12 @@ class Obstacle:
     probs: np.ndarray | None = None
     weight: float = 1.0
     zeta: float = 1.0
+    rule18: bool = False
 
     def __post_init__(self) -> None:
+        if not isinstance(self.rule18, (bool, np.bool_)):
+            raise ValueError(f"obstacle.rule18 must be True or False, got {self.rule18!r}")
+        object.__setattr__(self, "rule18", bool(self.rule18))
         state = checks.finite_array(self.state, "obstacle.state", (4,))
         v = float(np.hypot(state[2], state[3]))
         if v > MAX_OBSTACLE_SPEED_MPS:

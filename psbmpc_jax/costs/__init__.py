@@ -6,8 +6,9 @@ from .base import Context, TermValue, cost_term
 from .manoeuvring import SmoothManoeuvringTerm, gamma_johansen, gamma_sequence, gamma_smooth
 from .sbmpc import FuzzyColregsTerm, SbmpcHazardTerm, SmoothCollisionTerm, sbmpc_costs
 from .colregs_fuzzy import encounter_inputs, fis_colregs
+from .informed import InformedSbmpcTerm
 from .mcskf import Psbmpc2020Term
 
 __all__ = ["Context", "TermValue", "cost_term", "SmoothManoeuvringTerm", "gamma_johansen", "gamma_sequence",
            "gamma_smooth", "FuzzyColregsTerm", "SbmpcHazardTerm", "SmoothCollisionTerm", "sbmpc_costs",
-           "encounter_inputs", "fis_colregs", "Psbmpc2020Term"]
+           "encounter_inputs", "fis_colregs", "Psbmpc2020Term", "InformedSbmpcTerm"]

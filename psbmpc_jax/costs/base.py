@@ -42,7 +42,8 @@ class Context(NamedTuple):
     w_i P_s (0 for padding); ``world`` the device chart (:class:`~psbmpc_jax.packing.WorldArrays`);
     ``dense`` (static) selects the dense, gradient-safe layout; ``own_applied`` the own-ship trajectory of the
     applied offsets ``last_offsets`` held over the horizon (``[T, 1]``), computed only for terms that declare
-    ``needs_applied`` (the SB-MPC transitional term), else None."""
+    ``needs_applied`` (the SB-MPC transitional term), else None; ``obstacle_r18 [O]`` the obstacles' Rule-18
+    priority flags (``Obstacle.rule18``; None when the inputs carry none)."""
 
     t: jax.Array
     offsets: jax.Array
@@ -58,6 +59,7 @@ class Context(NamedTuple):
     world: Any
     dense: bool
     own_applied: Any = None
+    obstacle_r18: Any = None
 
 
 def needs_applied(terms) -> bool:

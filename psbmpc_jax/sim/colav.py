@@ -13,6 +13,8 @@ one group, so their solves batch (one vmapped call per update in ``vmap`` mode):
 ``sbmpc``            the same grid search with the original SB-MPC cost (:func:`psbmpc_jax.methods.sbmpc_terms`),
                      straight-line targets
 ``psbmpc_2020``      the same grid search with seed 004's cost (:func:`psbmpc_jax.methods.psbmpc2020_terms`)
+``informed_sbmpc``   the same grid search with seed 002's cost (:func:`psbmpc_jax.methods.informed_terms`):
+                     route exchange, Rule 18, bearing-shaped d_safe; planners rest beyond ``d_init``
 ``smooth_sbmpc``     Smooth-SBMPC of seed 000 (:class:`psbmpc_jax.smooth.planner.SmoothSBMPCPlanner`), all runs
                      of an update in one ``plan_batch`` call; per-step controls at ``mpc.smooth.dt_s`` (own-ship)
 ``sbmpc_init``       its initialisation stage alone (``init_only=True``): the paper's "original SB-MPC" (Sim 01)
@@ -178,10 +180,12 @@ class GridGroup:
     1: straight lines); ``refine_ships`` are refined after the search.  ``samples``: the estimator's table."""
 
     def __init__(self, ships, mode: str, mpc, params, samples, refine_ships=(), terms=DEFAULT_TERMS,
-                 n_ps: int | None = None, method: str = "psbmpc"):
+                 n_ps: int | None = None, method: str = "psbmpc", informed: bool = False,
+                 d_init: float | None = None):
         self.ships, self.mpc, self.method = tuple(int(i) for i in ships), mpc, method
         self.refine_ships = tuple(int(i) for i in refine_ships)
         self.n_ps = n_ps
+        self.informed, self.d_init = informed, d_init
         self.terms = tuple(terms)
         refine = None
         if self.refine_ships:
@@ -194,13 +198,38 @@ class GridGroup:
         """Whether the own-ship's full evaluation can be kept (the snapshot reads the PSB-MPC terms' details)."""
         return 0 in self.ships and self.terms == tuple(DEFAULT_TERMS)
 
+    def _active(self, loop, r: int, i: int, k: int) -> bool:
+        """With ``d_init``: whether another ship is within it (else the planner rests this update)."""
+        if self.d_init is None:
+            return True
+        d = np.hypot(*(loop.states[r, :, k, :2] - loop.states[r, i, k, :2]).T)
+        d[i] = np.inf
+        return bool(np.min(d) <= self.d_init)
+
     def update(self, loop, k: int, keep_job) -> Decisions:
-        mpc, config = self.mpc, self.mpc.config
         jobs = [(r, i) for r in range(loop.R) for i in self.ships]
+        active = [self._active(loop, r, i, k) for r, i in jobs]
+        if all(active):
+            return self._solve(loop, k, keep_job, jobs)
+        # resting planners apply (1, 0) and forget their last offsets (SPEC_SEEDS §3.4)
+        first = np.tile([1.0, 0.0], (len(jobs), 1))
+        costs = np.full((len(jobs), len(COST_NAMES)), np.nan)
+        walls = np.zeros(len(jobs))
+        busy = [n for n, a in enumerate(active) if a]
+        calls, wall, kept, kept_job = 0, 0.0, None, None
+        if busy:
+            sub = self._solve(loop, k, keep_job, [jobs[n] for n in busy])
+            first[busy], costs[busy], walls[busy] = sub.first, sub.costs, sub.walls
+            calls, wall, kept, kept_job = sub.device_calls, sub.wall, sub.kept, sub.kept_job
+        return Decisions(jobs=jobs, first=first, costs=costs, walls=walls, device_calls=calls, wall=wall, kept=kept,
+                         kept_job=kept_job)
+
+    def _solve(self, loop, k: int, keep_job, jobs) -> Decisions:
+        mpc, config = self.mpc, self.mpc.config
         if not self.snapshots:
             keep_job = None
-        packed = [pack(loop.situation(r, i, k, n_ps=self.n_ps), mpc.behaviours, config, grid=loop.grid)
-                  for r, i in jobs]
+        packed = [pack(loop.situation(r, i, k, n_ps=self.n_ps, informed=self.informed), mpc.behaviours, config,
+                       grid=loop.grid) for r, i in jobs]
         states = [PlannerState((loop.u_c[r, i], loop.chi_off[r, i])) for r, i in jobs]
         keep = jobs.index(keep_job) if keep_job in jobs else None
         refine_jobs = [n for n, (_, i) in enumerate(jobs) if i in self.refine_ships]

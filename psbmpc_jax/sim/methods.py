@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from typing import Callable
 
 from ..evaluate import DEFAULT_TERMS
-from ..methods import psbmpc2020_terms, sbmpc_terms
+from ..methods import informed_terms, psbmpc2020_terms, sbmpc_terms
 from .colav import GridGroup, SmoothGroup
 
 
@@ -70,6 +70,10 @@ register(Method("psbmpc_2020", "PSB-MPC of seed 004 (MCS + scalar KF collision p
                 lambda sc, ships, mode, params, samples, key, _: _grid(
                     ships, mode, sc, params, samples, method="psbmpc_2020", n_ps=1,
                     terms=psbmpc2020_terms(sc.mpc.sbmpc, with_grounding=_sbmpc_family_grounding(sc)))))
+register(Method("informed_sbmpc", "Informed SB-MPC (seed 002): route exchange, Rule 18, bearing-shaped d_safe",
+                lambda sc, ships, mode, params, samples, key, _: GridGroup(
+                    ships, mode, sc.mpc, params, samples, terms=informed_terms(sc.mpc.informed), n_ps=1,
+                    method="informed_sbmpc", informed=True, d_init=sc.mpc.informed.d_init)))
 register(Method("smooth_sbmpc", "Smooth-SBMPC (seed 000): init stage + DOCP", lambda sc, ships, mode, params, samples,
                 key, cls: SmoothGroup(sc, cls), targets=False))
 register(Method("sbmpc_init", "Smooth-SBMPC's initialisation stage alone (seed 000 Sim 01)",

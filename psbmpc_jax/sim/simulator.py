@@ -46,9 +46,21 @@ from . import colav as colav_mod
 from . import metrics as metrics_mod
 from .colav import COST_NAMES, INFO_NAMES, POINT_HULL_M  # noqa: F401  (COST_NAMES: re-exported for readers of the results)
 from .tracker import TrackerBank
+from . import vessel3dof
 from .vessel import extend_route, kinematic_step, los_course, nominal_speed, pad_routes
 
 BATCH_MODES = ("auto", "vmap", "loop")
+
+
+def route_distance(p, route) -> float:
+    """Distance [m] from point ``p [2]`` to the polyline ``route [m, 2]`` (the cross-track distance the route
+    exchange's supervisor compares with ``mpc.informed.xtd_threshold``)."""
+    p, route = np.asarray(p, float), np.asarray(route, float)
+    a, b = route[:-1], route[1:]
+    ab = b - a
+    L2 = np.einsum("ij,ij->i", ab, ab)
+    u = np.clip(np.einsum("ij,ij->i", p - a, ab) / np.where(L2 > 0, L2, 1.0), 0.0, 1.0)
+    return float(np.min(np.hypot(*(a + u[:, None] * ab - p).T)))
 
 
 @dataclass
@@ -241,6 +253,10 @@ class _ClosedLoop:
         self.routes_ext, self.n_wp = pad_routes([extend_route(s.waypoints) for s in ships])
         self.lookahead, self.R_a = np.array([s.lookahead for s in ships]), np.array([s.R_a for s in ships])
         self.T_chi, self.T_U = np.array([s.T_chi for s in ships]), np.array([s.T_U for s in ships])
+        # ships whose true motion is the 3-DOF manoeuvring model (their full state [R, m, 6] is kept here)
+        self.motion3 = [i for i, s in enumerate(ships) if s.motion_model == "3dof"]
+        self.params3 = (vessel3dof.stack_params([vessel3dof.preset(ships[i].vessel_model) for i in self.motion3])
+                        if self.motion3 else None)
 
         dtype = np.dtype(config.dtype)
         # which controller runs which ship (colav.py); the PSB-MPC group, if any, gets the solver's inputs
@@ -260,9 +276,15 @@ class _ClosedLoop:
         self.t = np.arange(K + 1) * dt
         self.states = np.empty((R, n, K + 1, 4))
         self.states[:, :, 0] = np.array([[s.position[0], s.position[1], s.course, s.speed] for s in ships])
+        self.full3 = vessel3dof.from_sim_state(self.states[:, self.motion3, 0]) if self.motion3 else None
         self.seg = np.zeros((R, n), dtype=np.int64)
         self.u_c, self.chi_off = np.ones((R, n)), np.zeros((R, n))
         self.rngs = [np.random.default_rng([int(seed), r]) for r in range(R)]
+        # route exchange (seed 002): the segment of the last plan each run received from each ship (-1: none),
+        # the plans published but not yet due (delay), and the dropout draws (their own streams)
+        self.received_seg = np.full((R, n), -1, dtype=np.int64)
+        self.plan_queue: list[tuple[float, np.ndarray, np.ndarray]] = []
+        self.exchange_rngs = [np.random.default_rng([int(seed), r, 2002]) for r in range(R)]
         R_filter = sensor.filter_R_scale * sensor.position_std ** 2 * np.eye(2)
         self.tracker = TrackerBank((R, self.n_tg), R_filter, sensor.sigma_a, sensor.U_max) if self.n_tg else None
         self.track_x = np.full((R, self.n_tg, K + 1, 4), np.nan)
@@ -280,14 +302,20 @@ class _ClosedLoop:
         pos_var, vel_var = sensor.colav_target_cov
         self.true_cov = np.diag([pos_var, pos_var, vel_var, vel_var])
 
-    def situation(self, r: int, i: int, k: int, n_ps: int | None = None) -> Situation:
+    def situation(self, r: int, i: int, k: int, n_ps: int | None = None, informed: bool = False) -> Situation:
         """What ship ``i`` of run ``r`` plans with at step ``k``: its remaining route from the active segment,
         the others through the own-ship's tracks (ship 0) or as true states with a small covariance, predicted
-        with ``n_ps`` scenarios each (None: ``mpc.n_ps``; 1: straight lines)."""
+        with ``n_ps`` scenarios each (None: ``mpc.n_ps``; 1: straight lines).  ``informed`` (seed 002): the
+        others' true states (the exchanged AIS data; no tracker), one scenario each, along the route a ship shared
+        (:meth:`shared_route`) while it is within ``mpc.informed.xtd_threshold`` of it, else a straight line,
+        with the Rule-18 role it shared."""
         s = self.ships[i]
         z = self.seg[r, i]
         own = OwnShip(state=self.states[r, i, k], waypoints=self.routes_ext[i, z: self.n_wp[i]],
                       U_d=nominal_speed(s, self.t[k]), length=s.length, width=s.width)
+        if informed:
+            return Situation(own, tuple(self._informed_obstacle(r, i, j, k) for j in range(len(self.ships))
+                                        if j != i), self.sc.polygons)
         obstacles = []
         for j, o in enumerate(self.ships):
             if j == i:
@@ -304,6 +332,24 @@ class _ClosedLoop:
                                       n_ps=self.sc.mpc.n_ps if n_ps is None else n_ps))
         return Situation(own, tuple(obstacles), self.sc.polygons)
 
+    def _informed_obstacle(self, r: int, i: int, j: int, k: int) -> Obstacle:
+        """Ship ``j`` as planner ``i`` of run ``r`` sees it under ``informed_sbmpc``: the own-ship through its
+        tracks (like every own-ship method here), a target planner through true states; along its shared route
+        while within the XTD threshold of it (measured from the true position), else a straight line."""
+        o, xs = self.ships[j], self.states[r, j, k]
+        if i == 0:
+            est, cov = self.track_x[r, j - 1, k], self.track_P[r, j - 1, k]
+        else:
+            est = np.array([xs[0], xs[1], xs[3] * np.cos(xs[2]), xs[3] * np.sin(xs[2])])
+            cov = self.true_cov
+        route = self.shared_route(r, j) if self.sc.mpc.informed.route_exchange else None
+        if route is not None and route_distance(xs[:2], route) > self.sc.mpc.informed.xtd_threshold:
+            route = None                                      # the XTD supervisor: off its plan, straight line
+        role_known = self.received_seg[r, j] >= 0
+        return Obstacle(state=est, cov=cov, length=max(o.length, POINT_HULL_M),
+                        width=max(o.width, POINT_HULL_M), n_ps=1, waypoints=route,
+                        rule18=bool(role_known and o.rule18_role != "pdv"))
+
     def measure(self, k: int) -> None:
         """Noisy target positions into the tracks (every sensor period); record the tracks of step ``k``."""
         if self.tracker is None:
@@ -313,9 +359,33 @@ class _ClosedLoop:
             self.tracker.measure(self.states[:, 1:, k, :2] + self.sc.sensor.position_std * noise)
         self.track_x[:, :, k], self.track_P[:, :, k] = self.tracker.x, self.tracker.P
 
+    def exchange(self, k: int) -> None:
+        """Route exchange at an MPC update: every ship with ``shares_route`` publishes its remaining route (its
+        active segment) and role; a message is lost with ``mpc.informed.exchange_dropout``; the plans published
+        at or before ``t - exchange_delay`` are delivered (the receiver keeps the last one it got)."""
+        sharing = np.array([s.shares_route for s in self.ships])
+        if not sharing.any():
+            return
+        inf = self.sc.mpc.informed
+        lost = np.stack([g.random(len(self.ships)) < inf.exchange_dropout for g in self.exchange_rngs])
+        self.plan_queue.append((float(self.t[k]), self.seg.copy(), sharing[None, :] & ~lost))
+        due = float(self.t[k]) - inf.exchange_delay + 1e-9
+        while self.plan_queue and self.plan_queue[0][0] <= due:
+            _, seg, delivered = self.plan_queue.pop(0)
+            self.received_seg = np.where(delivered, seg, self.received_seg)
+
+    def shared_route(self, r: int, j: int):
+        """The route ship ``j`` shared with run ``r``'s planners (``[m, 2]`` from its active segment at the time
+        of the plan), or None if none was received."""
+        z = int(self.received_seg[r, j])
+        if z < 0:
+            return None
+        return self.routes_ext[j, z: max(self.n_wp[j], z + 2)]
+
     def plan(self, k: int) -> None:
         """One MPC update of every ship with collision avoidance in every run (:mod:`psbmpc_jax.sim.colav`);
         apply what is due now."""
+        self.exchange(k)
         m = k // self.mpc_every
         keep_job = (self.snapshot_run, 0) if self.snap_pending else None
         t0 = time.perf_counter()
@@ -366,13 +436,19 @@ class _ClosedLoop:
         self.snap_pending = not manoeuvring
 
     def move(self, k: int) -> None:
-        """True motion from step ``k`` to ``k + 1`` (LOS + offsets, kinematic model); tracks predicted along."""
+        """True motion from step ``k`` to ``k + 1`` (LOS + offsets; the kinematic model, or the 3-DOF model for
+        ships with ``motion_model: 3dof``); tracks predicted along."""
         self._apply_sequences(k)
         chi_los, self.seg = los_course(self.states[:, :, k, :2], self.seg, self.routes_ext, self.n_wp,
                                        self.lookahead, self.R_a)
         U_cmd = self.u_c * np.array([nominal_speed(s, self.t[k]) for s in self.ships])
-        self.states[:, :, k + 1] = kinematic_step(self.states[:, :, k], chi_los + self.chi_off, U_cmd, self.T_chi,
-                                                  self.T_U, self.sc.dt)
+        chi_cmd = chi_los + self.chi_off
+        self.states[:, :, k + 1] = kinematic_step(self.states[:, :, k], chi_cmd, U_cmd, self.T_chi, self.T_U,
+                                                  self.sc.dt)
+        if self.motion3:
+            m = self.motion3
+            self.full3 = vessel3dof.step(self.full3, chi_cmd[:, m], U_cmd[:, m], self.sc.dt, self.params3)
+            self.states[:, m, k + 1] = vessel3dof.sim_view(self.full3)
         if self.tracker is not None:
             self.tracker.step(self.sc.dt)
 
