@@ -13,6 +13,8 @@ scenario                           variants                                 the 
 ``akdag2022_stand_on_rule18``      target role ``pdv`` / ``ram`` (P_R18)    pdv: crosses ahead, close; ram:
                                                                             slows down, keeps out of the way
 ``akdag2022_overtaken``            circular / bearing-shaped (k = 2) d_safe circular: earlier first manoeuvre
+``akdag2022_three_ships``          one variant                              no collision; the power-driven
+                                                                            ships keep out of the Rule-18 ship
 =================================  =======================================  ===================================
 
 Per (scenario, variant) it writes the simulator's output under ``<out>/<scenario>/<variant>/`` and, in
@@ -56,6 +58,7 @@ VARIANTS = {
                                   "P_R18 (role ram)": lambda sc: _role(sc, "ram")},
     "akdag2022_overtaken": {"circular": lambda sc: _informed(sc, circular=True),
                             "bearing_shaped_k2": lambda sc: _informed(sc, circular=False)},
+    "akdag2022_three_ships": {"default": lambda sc: sc},
 }
 
 
@@ -88,7 +91,15 @@ def records(result) -> list[dict]:
     for r in range(result.states.shape[0]):
         t0, side, u0 = first_manoeuvre(result.offsets[r, 0], period)
         d = np.hypot(*(result.states[r, 1:, :, :2] - result.states[r, :1, :, :2]).transpose(2, 0, 1))
+        ships = result.scenario.ships
+        r18 = [j for j, s in enumerate(ships) if s.rule18_role != "pdv"]
+        astern = {ships[i].name: not passed_ahead(result.states[r, i], result.states[r, j])
+                  for j in r18 for i, s in enumerate(ships) if s.colav != "none" and i != j}
+        pair_min = {f"{ships[i].name}-{ships[j].name}": round(float(np.min(np.hypot(
+            *(result.states[r, i, :, :2] - result.states[r, j, :, :2]).T))), 1)
+            for i in range(len(ships)) for j in range(i + 1, len(ships))}
         out.append({"run": r, "first_manoeuvre_t_s": t0, "first_manoeuvre_side": side,
+                    "passed_astern_of_rule18_ship": astern, "pair_min_distance_m": pair_min,
                     "first_manoeuvre_speed_factor": u0,
                     "first_manoeuvre_course_deg": None if t0 is None else
                     round(math.degrees(float(result.offsets[r, 0, int(round(t0 / period)), 1])), 1),
@@ -110,6 +121,8 @@ def aggregate(rows) -> dict:
             "first_manoeuvre_t_s": stat("first_manoeuvre_t_s"), "min_distance_m": stat("min_distance_m"),
             "min_speed_factor": stat("min_speed_factor"), "max_abs_course_offset_deg": stat("max_abs_course_offset_deg"),
             "passed_ahead_runs": sum(bool(r["passed_ahead_of_target"]) for r in rows),
+            "all_planners_astern_of_rule18_runs": sum(bool(r["passed_astern_of_rule18_ship"]) and
+                                                      all(r["passed_astern_of_rule18_ship"].values()) for r in rows),
             "collisions": sum(r["collision"] for r in rows)}
 
 
