@@ -225,7 +225,7 @@ def test_3dof_ships_move_with_the_manoeuvring_model():
 
 
 @pytest.mark.parametrize("name", ["akdag2022_head_on", "akdag2022_crossing_give_way", "akdag2022_stand_on_rule18",
-                                  "akdag2022_overtaken"])
+                                  "akdag2022_overtaken", "akdag2022_three_ships"])
 def test_seed_002_scenarios_run(name):
     sc = load_scenario(name)
     sc = dataclasses.replace(sc, duration=60.0)
