@@ -6,7 +6,6 @@ cases (d = 0, zero speeds, no targets, inside land, float32) and parameter valid
 
 from __future__ import annotations
 
-import collections
 import math
 
 import jax
@@ -35,15 +34,9 @@ COV = np.diag([25.0, 25.0, 1.0, 1.0])
 OWN = np.array([0.0, 0.0, 0.0, 5.0])                       # north at 5 m/s
 
 
-#: A Context with the ``obstacle_r18`` field (a pytree, like Context) while Context lacks it.
-RoleContext = collections.namedtuple("RoleContext", Context._fields + ("obstacle_r18",))
-
-
 def with_roles(ctx, r18):
-    """``ctx`` with ``obstacle_r18`` (the Context field when it exists, else :data:`RoleContext`)."""
-    if "obstacle_r18" in Context._fields:
-        return ctx._replace(obstacle_r18=r18)
-    return RoleContext(**ctx._asdict(), obstacle_r18=r18)
+    """``ctx`` with the Rule-18 mask ``obstacle_r18`` replaced."""
+    return ctx._replace(obstacle_r18=r18)
 
 
 @cost_term

@@ -156,7 +156,7 @@ ERRORS = [
     ("n_ps_float", _set(lambda d: d["mpc"], "n_ps", 5.0), r"mpc.n_ps must be an odd integer >= 1, got 5.0"),
     ("n_ps_bool", _set(lambda d: d["mpc"], "n_ps", True), r"mpc.n_ps must be an odd integer"),
     ("preset_unknown", _set(lambda d: d["mpc"], "preset", "river"),
-     r"mpc.preset must be one of \['nidelva', 'open_sea', 'sakshaug', 'tengesdal2020'\], got 'river'"),
+     r"mpc.preset must be one of \['akdag2022', 'nidelva', 'open_sea', 'sakshaug', 'tengesdal2020'\], got 'river'"),
     ("config_name", _set(lambda d: d["mpc"], "config", {"horizon": 100}),
      r"unknown PlannerConfig field\(s\) \['horizon'\]; allowed: .*'T'"),
     ("params_name", _set(lambda d: d["mpc"], "params", {"dsafe": 5}),

@@ -129,7 +129,7 @@ def test_preset_is_optional_only_for_the_smooth_methods():
 
 BAD = [
     ("method", with_("mpc.method", "smooth"), r"mpc.method must be one of psbmpc, psbmpc_refine, smooth_sbmpc, "
-                                              r"sbmpc_init, sbmpc, psbmpc_2020, got 'smooth'"),
+                                              r"sbmpc_init, sbmpc, psbmpc_2020, informed_sbmpc, got 'smooth'"),
     ("method_type", with_("mpc.method", 3), r"mpc.method must be one of .*got 3"),
     ("smooth_unknown", with_("mpc.smooth.T_init", 8), r"unknown key 'T_init' in mpc.smooth \(did you mean "
                                                       r"'T_init_s'\?\); allowed keys: T_init_s, T_mpc_s"),
