@@ -90,7 +90,8 @@ def context(inputs: SolveInputs, last_offsets, params: Params, config: PlannerCo
         held = jnp.broadcast_to(jnp.asarray(last_offsets, dtype), (1, offsets.shape[1], 2))
         own_applied = ownship_rollouts(own_in.state, own_path, own_in.U_d, held, params, n_steps, dt)
     n_o, n_s = obs_in.probs.shape
-    obs = obstacle_scenarios(obs_in.state, obs_in.wx, obs_in.wy, obs_in.n, obs_in.n_ps, n_s, params, n_steps, dt)
+    obs = obstacle_scenarios(obs_in.state, obs_in.wx, obs_in.wy, obs_in.n, obs_in.n_ps, n_s, params, n_steps, dt,
+                             leg_u=obs_in.leg_u)
     cov = obstacle_covariances(obs_in.cov, params, n_steps, dt)
     scen_valid = obs_in.mask[:, None] & (jnp.arange(n_s)[None, :] < obs_in.n_ps[:, None])
     return Context(

@@ -18,13 +18,14 @@ def scenario_offsets(n_ps, s_cap: int, r_ct):
 
 
 def obstacle_scenarios(obs_state, wx, wy, n_wps, n_ps, s_cap: int, params, n_steps: int, dt,
-                       unroll: int = 1) -> Trajectory:
+                       unroll: int = 1, leg_u=None) -> Trajectory:
     """Predicted trajectories of every (obstacle, scenario), time-major components ``[N+1, O, S]``.
 
     Args:
         obs_state: ``[O, 4]`` estimates ``[x, y, V_x, V_y]``.
         wx, wy: ``[O, W]`` padded routes (already including the straight-line default route).
         n_wps: ``[O]`` valid waypoints (>= 2); n_ps: ``[O]`` scenario counts.
+        leg_u: optional ``[O, W]`` leg speeds of shared plans (< 0: none; the present speed is held).
     """
     n_o = obs_state.shape[0]
     speed = jnp.sqrt(obs_state[:, 2] ** 2 + obs_state[:, 3] ** 2)
@@ -37,7 +38,8 @@ def obstacle_scenarios(obs_state, wx, wy, n_wps, n_ps, s_cap: int, params, n_ste
     u_ref = jnp.broadcast_to(rep(speed), (n_steps, rows))
     chi_off = jnp.zeros((n_steps, rows), obs_state.dtype)
     traj = los_rollout(rep(x0), path, chi_off, u_ref, offsets, params.ob_lookahead, params.ob_R_a,
-                       params.ob_T_chi, params.ob_T_U, dt, unroll=unroll)
+                       params.ob_T_chi, params.ob_T_U, dt, unroll=unroll,
+                       seg_speed=None if leg_u is None else rep(leg_u))
     return Trajectory(*(c.reshape(n_steps + 1, n_o, s_cap) for c in traj))
 
 

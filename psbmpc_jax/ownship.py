@@ -70,7 +70,7 @@ def _take(table, idx):
 
 
 def los_rollout(x0, path: Path, chi_offsets, U_cmd, lateral_offset, lookahead, R_a, T_chi, T_U, dt,
-                unroll: int = 1, z0=None, return_segment: bool = False):
+                unroll: int = 1, z0=None, return_segment: bool = False, seg_speed=None):
     """Roll the kinematic model with LOS guidance forward N steps for R rows.
 
     Args:
@@ -82,6 +82,8 @@ def los_rollout(x0, path: Path, chi_offsets, U_cmd, lateral_offset, lookahead, R
         z0: optional initial active segment per row ``[R]`` (int32; default 0, the first segment).
         return_segment: also return the active segment used at each emitted state, ``[N+1, R]`` (a
             closed loop that steps one state at a time carries it to the next call as ``z0``).
+        seg_speed: optional per-row leg speeds ``[R, W]`` [m/s]: where the active leg's entry is >= 0 it replaces
+            the speed reference (a shared plan's leg speeds; after the last waypoint the last leg's).
 
     Returns the :class:`Trajectory` (and the segments when ``return_segment``).
     """
@@ -105,6 +107,9 @@ def los_rollout(x0, path: Path, chi_offsets, U_cmd, lateral_offset, lookahead, R
         chi_los = _take(path.alpha, zi) + jnp.where(
             z <= last_seg, jnp.arctan(-(e - lateral_offset) / lookahead), 0.0)
         chi_cmd = chi_los + chi_off
+        if seg_speed is not None:
+            leg_u = _take(seg_speed, zi)
+            u_ref = jnp.where(leg_u >= 0, leg_u, u_ref)
         c, s = jnp.cos(chi), jnp.sin(chi)
         x_new = x + dt * U * c
         y_new = y + dt * U * s

@@ -61,6 +61,7 @@ class ObstacleArrays(NamedTuple):
     zeta: jax.Array
     mask: jax.Array
     r18: Any = None             # [O] bool: Rule-18 priority (Obstacle.rule18); None in hand-built inputs
+    leg_u: Any = None           # [O, Wo] leg speeds of shared plans (Obstacle.leg_speeds; -1: none)
 
 
 class ChartArrays(NamedTuple):
@@ -301,8 +302,11 @@ def pack(situation: Situation, behaviours: np.ndarray, config, *, capacities: Ca
     obs_weight, obs_zeta = np.zeros(o_cap), np.zeros(o_cap)
     obs_mask = np.zeros(o_cap, dtype=bool)
     obs_r18 = np.zeros(o_cap, dtype=bool)
+    obs_leg = np.full((o_cap, wo_cap), -1.0)
     for i, (ob, route) in enumerate(zip(obstacles, routes)):
         obs_r18[i] = ob.rule18
+        if ob.leg_speeds is not None:
+            obs_leg[i, : len(ob.leg_speeds)] = ob.leg_speeds
         obs_state[i], obs_cov[i], obs_length[i] = ob.state, ob.cov, ob.length
         obs_state[i, :2] -= o
         obs_w[i, : len(route)], obs_n[i] = route - o, len(route)
@@ -319,7 +323,7 @@ def pack(situation: Situation, behaviours: np.ndarray, config, *, capacities: Ca
                           f(own.length)),
         obstacles=ObstacleArrays(f(obs_state), f(obs_cov), f(obs_length), f(obs_w[..., 0]), f(obs_w[..., 1]),
                                  i32(obs_n), i32(obs_n_ps), f(obs_probs), f(obs_weight), f(obs_zeta), obs_mask,
-                                 obs_r18),
+                                 obs_r18, f(obs_leg)),
         world=world if world is not None else pack_world(situation.polygons, config, caps, grid, origin=o),
         behaviours=(behaviour_arrays if behaviour_arrays is not None
                     else pack_behaviours(behaviours, config, caps)),
@@ -353,7 +357,9 @@ def stack(items) -> SolveInputs:
                                                   mode="edge")
 
     own = [x.own._replace(wx=widen(x.own.wx, w_own), wy=widen(x.own.wy, w_own)) for x in items]
-    obs = [x.obstacles._replace(wx=widen(x.obstacles.wx, w_obs), wy=widen(x.obstacles.wy, w_obs)) for x in items]
+    obs = [x.obstacles._replace(wx=widen(x.obstacles.wx, w_obs), wy=widen(x.obstacles.wy, w_obs),
+                                leg_u=None if x.obstacles.leg_u is None else widen(x.obstacles.leg_u, w_obs))
+           for x in items]
     stack_ = lambda trees: jax.tree.map(lambda *a: jnp.stack(a), *trees)
     return SolveInputs(stack_(own), stack_(obs), items[0].world, items[0].behaviours)
 

@@ -130,7 +130,7 @@ def _per_step(values, n_steps: int, name: str) -> np.ndarray:
 
 
 def los_rollout(x0, waypoints, chi_offsets, U_cmd, lateral_offset, lookahead, R_a, T_chi, T_U, dt,
-                n_steps) -> np.ndarray:
+                n_steps, leg_speeds=None) -> np.ndarray:
     """Roll out the kinematic model (§3) under LOS path following (§2).
 
     Args:
@@ -144,6 +144,8 @@ def los_rollout(x0, waypoints, chi_offsets, U_cmd, lateral_offset, lookahead, R_
         T_chi, T_U: course and speed time constants [s].
         dt: time step [s].
         n_steps: N.
+        leg_speeds: optional ``[n - 1]`` speed per leg: the active leg's replaces ``U_cmd`` (after the last
+            waypoint, the last leg's).
 
     Returns:
         ``[N + 1, 4]`` trajectory ``[x, y, chi, U]``; row 0 is ``x0``.
@@ -196,7 +198,8 @@ def los_rollout(x0, waypoints, chi_offsets, U_cmd, lateral_offset, lookahead, R_
         x_new = x + dt * U * math.cos(chi)
         y_new = y + dt * U * math.sin(chi)
         chi_new = _wrap(chi + k_chi * _wrap(chi_cmd - chi))
-        U_new = U + k_u * (u_ref[k] - U)
+        u_k = u_ref[k] if leg_speeds is None else float(leg_speeds[min(z, n - 2)])
+        U_new = U + k_u * (u_k - U)
         x, y, chi, U = x_new, y_new, chi_new, U_new
         traj[k + 1, 0] = x
         traj[k + 1, 1] = y
@@ -271,7 +274,7 @@ def obstacle_scenarios(obstacle: Obstacle, params: Params = Params(),
     for j in range(n_ps):
         offset = (j - m) * float(params.r_ct)
         out[j] = los_rollout(x0, path, 0.0, x0[3], offset, params.ob_lookahead, params.ob_R_a,
-                             params.ob_T_chi, params.ob_T_U, config.dt, n_steps)
+                             params.ob_T_chi, params.ob_T_U, config.dt, n_steps, leg_speeds=obstacle.leg_speeds)
     return out
 
 

@@ -78,6 +78,8 @@ class ShipSpec:
             the loader then warns about such legs instead of refusing them).  Targets: always False.
         shares_route: the ship publishes its route and its Rule-18 role to the others every MPC update (route
             exchange, seed 002; only ``informed_sbmpc`` planners use it).
+        leg_speeds: optional nominal speed per leg of ``waypoints`` [m/s] (``leg_speeds_mps``; after the last
+            waypoint the last leg's); shared with the route.  None: ``U_d`` / ``speed_plan``.
         rule18_role: its COLREGS Rule-18 role, one of :data:`RULE18_ROLES` (``pdv``: power-driven, no priority).
         motion_model: ``"kinematic"`` (the planner's model with autopilot lags ``T_chi``, ``T_U``) or ``"3dof"``
             (Fossen's manoeuvring model, :mod:`psbmpc_jax.sim.vessel3dof`, preset ``vessel_model``).
@@ -101,6 +103,7 @@ class ShipSpec:
     colav: str = "none"
     allow_route_over_land: bool = False
     shares_route: bool = False
+    leg_speeds: np.ndarray | None = None
     rule18_role: str = "pdv"
     motion_model: str = "kinematic"
     vessel_model: str | None = None
@@ -371,7 +374,7 @@ _LATLON_ORIGIN_KEYS = ("lat", "lon")
 _SHIP_KEYS = ("name", "position_m", "position_utm", "position_latlon", "course_deg", "speed_mps", "speed_kn",
               "nominal_speed_mps", "nominal_speed_kn", "waypoints_m", "waypoints_utm", "waypoints_latlon", "speed_plan", "length_m", "width_m", "T_chi_s",
               "T_U_s", "lookahead_m", "R_a_m", "colav", "allow_route_over_land", "shares_route", "rule18_role",
-              "motion_model", "vessel_model")
+              "motion_model", "vessel_model", "leg_speeds_mps")
 _PLAN_KEYS = ("t_s", "speed_mps", "speed_kn")
 
 
@@ -1169,7 +1172,23 @@ def _ship(d, where: str, *, own: bool, ctx: dict) -> ShipSpec:
         raise ValueError(f"{where}: length_m and width_m must both be 0 (a point object) or both > 0, got "
                          f"{spec.length:g} and {spec.width:g}")
     ctx.setdefault("default_routes", []).append(wkey is None)
-    return dataclasses.replace(spec, **_exchange_and_motion(d, where))
+    out = _exchange_and_motion(d, where)
+    if "leg_speeds_mps" in d:
+        ls = d["leg_speeds_mps"]
+        if wkey is None:
+            raise ValueError(f"{where}.leg_speeds_mps needs the ship's waypoints (one speed per leg)")
+        if plan is not None:
+            raise ValueError(f"{where}: leg_speeds_mps and speed_plan are exclusive (speeds per leg or over time)")
+        n_legs = len(spec.waypoints) - 1
+        if not isinstance(ls, (list, tuple)) or len(ls) != n_legs:
+            raise ValueError(f"{where}.leg_speeds_mps must be a list of {n_legs} speeds (one per leg of the route), "
+                             f"got {show(ls)}")
+        out["leg_speeds"] = np.array([_number(v, f"{where}.leg_speeds_mps[{i}]", ge=0, le=MAX_SPEED_MPS)
+                                      for i, v in enumerate(ls)])
+        if colav != "none" and not np.all(out["leg_speeds"] > 0):
+            raise ValueError(f"{where}.leg_speeds_mps: every leg speed must be > 0 for a ship that runs a method "
+                             f"(its planner needs a nominal speed), got {out['leg_speeds'].tolist()}")
+    return dataclasses.replace(spec, **out)
 
 
 #: Rule-18 roles a ship may declare (``rule18_role``): power-driven (no priority), not under command, restricted

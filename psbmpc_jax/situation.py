@@ -173,6 +173,9 @@ class Obstacle:
         probs: scenario probabilities ``[n_ps]`` (non-negative, summing to 1); ``None`` = uniform.
         weight: cost weight ``w_i >= 0``.
         zeta: track-loss modifier ``zeta_i >= 0`` (1 unless the track was lost).
+        leg_speeds: optional speed [m/s] per leg of ``waypoints`` (``[len(waypoints) - 1]``, a shared plan's):
+            the prediction follows each leg at its speed (after the last waypoint the last leg's); None: the
+            present speed throughout.
         rule18: the obstacle has priority under COLREGS Rule 18 (not under command, restricted in its ability
             to manoeuvre, constrained by draught, fishing, sailing) as it shared; read by the Informed SB-MPC
             term (its P_R18 parameter set).
@@ -188,6 +191,7 @@ class Obstacle:
     weight: float = 1.0
     zeta: float = 1.0
     rule18: bool = False
+    leg_speeds: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.rule18, (bool, np.bool_)):
@@ -213,6 +217,14 @@ class Obstacle:
         object.__setattr__(self, "width", checks.positive(self.width, "obstacle.width"))
         if self.waypoints is not None:
             object.__setattr__(self, "waypoints", checks.waypoints(self.waypoints, "obstacle.waypoints", 2))
+        if self.leg_speeds is not None:
+            if self.waypoints is None:
+                raise ValueError("obstacle.leg_speeds needs obstacle.waypoints (one speed per leg)")
+            legs = checks.finite_array(self.leg_speeds, "obstacle.leg_speeds", (len(self.waypoints) - 1,))
+            if np.any(legs < 0) or np.any(legs > MAX_OBSTACLE_SPEED_MPS):
+                raise ValueError(f"obstacle.leg_speeds must be in [0, {MAX_OBSTACLE_SPEED_MPS:g}] m/s, got "
+                                 f"{legs.tolist()}")
+            object.__setattr__(self, "leg_speeds", legs)
         n_ps = self.n_ps
         if (isinstance(n_ps, (bool, np.bool_)) or not isinstance(n_ps, (int, np.integer)) or n_ps < 1
                 or n_ps % 2 == 0):

@@ -232,3 +232,58 @@ def test_seed_002_scenarios_run(name):
     planners = [i for i, s in enumerate(sc.ships) if s.colav != "none"]
     assert np.all(np.isfinite(res.states)) and np.all(np.isfinite(res.offsets[:, planners]))
     assert all(s.motion_model == "3dof" for s in sc.ships)
+
+
+# ============================================================================= leg speeds of shared plans
+def test_prediction_at_leg_speeds_matches_the_reference():
+    """An obstacle with per-leg speeds is predicted at each leg's speed (after the last waypoint the last
+    leg's): the evaluator's float64 rollout equals the sequential reference's, and its speed settles at the
+    second leg's value after the turn."""
+    from psbmpc_jax import reference as ref_mod
+
+    cfg = PlannerConfig(T=300.0, dt=5.0, dtype="float64")
+    prm = Params(ob_T_chi=15.0, ob_T_U=30.0, ob_lookahead=300.0)
+    own = OwnShip(state=[0.0, 0.0, 0.0, 6.0], waypoints=np.array([[0.0, 0.0], [9000.0, 0.0]]), U_d=6.0)
+    route = np.array([[1500.0, 50.0], [1000.0, 50.0], [1000.0, 3000.0]])
+    ob = Obstacle([1500.0, 50.0, -6.0, 0.0], np.diag([4.0, 4.0, 0.1, 0.1]), n_ps=1, waypoints=route,
+                  leg_speeds=[6.0, 2.5])
+    ev = evaluate(pack(Situation(own, (ob,)), np.array([[[1.0, 0.0]]]), cfg), jnp.asarray([1.0, 0.0]), prm, None,
+                  config=cfg)
+    got = np.stack([np.asarray(getattr(ev.obstacles, c))[:, 0, 0] for c in ("x", "y", "chi", "U")], axis=1)
+    ref = ref_mod.obstacle_scenarios(ob, prm, cfg)[0]
+    np.testing.assert_allclose(got, ref, rtol=1e-10, atol=1e-8)
+    assert got[-1, 3] == pytest.approx(2.5, abs=0.05) and got[10, 3] == pytest.approx(6.0, abs=0.05)
+    with pytest.raises(ValueError, match=r"obstacle.leg_speeds needs obstacle.waypoints"):
+        Obstacle([0.0, 0.0, 1.0, 0.0], np.eye(4), leg_speeds=[1.0])
+    with pytest.raises(ValueError, match=r"obstacle.leg_speeds"):
+        Obstacle([0.0, 0.0, 1.0, 0.0], np.eye(4), waypoints=route, leg_speeds=[1.0])          # 2 legs, 1 speed
+
+
+def test_leg_speeds_in_the_file_move_the_ship_and_are_shared():
+    d = scen(targets__0__leg_speeds_mps=[6.0, 3.0], targets__0__colav="none", simulation__duration_s=200)
+    d["mpc"]["informed"]["d_init_m"] = 100                       # the own-ship rests: the target moves freely
+    sc = scenario_from_dict(d)
+    assert sc.targets[0].leg_speeds.tolist() == [6.0, 3.0]
+    res = simulate(sc, runs=1)
+    U = res.states[0, 1, :, 3]
+    assert U[30] == pytest.approx(6.0, abs=0.05) and U[-1] < 3.5                # first leg 6 m/s, then 3 m/s
+    lp = loop_of(d)
+    lp.exchange(0)
+    np.testing.assert_allclose(lp.shared_leg_speeds(0, 1), [6.0, 3.0, 3.0])      # + the extension leg
+    lp.measure(0)
+    ob = lp.situation(0, 0, 0, n_ps=1, informed=True).obstacles[0]
+    np.testing.assert_allclose(ob.leg_speeds, [6.0, 3.0, 3.0])
+
+
+@pytest.mark.parametrize("change, match", [
+    (dict(targets__0__leg_speeds_mps=[6.0]), r"targets\[0\].leg_speeds_mps must be a list of 2 speeds"),
+    (dict(targets__0__leg_speeds_mps=[6.0, -1]), r"targets\[0\].leg_speeds_mps\[1\] must be >= 0"),
+    (dict(targets__0__leg_speeds_mps=[6.0, 0.0], targets__0__colav="informed_sbmpc"),
+     r"targets\[0\].leg_speeds_mps: every leg speed must be > 0"),
+    (dict(targets__0__leg_speeds_mps=[6.0, 3.0], targets__0__waypoints_m=None), r"needs the ship's waypoints"),
+    (dict(targets__0__leg_speeds_mps=[6.0, 3.0], targets__0__speed_plan=[{"t_s": 5, "speed_mps": 2}]),
+     r"leg_speeds_mps and speed_plan are exclusive"),
+])
+def test_bad_leg_speeds(change, match):
+    with pytest.raises(ValueError, match=match):
+        scenario_from_dict(scen(**change))

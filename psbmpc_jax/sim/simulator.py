@@ -47,7 +47,7 @@ from . import metrics as metrics_mod
 from .colav import COST_NAMES, INFO_NAMES, POINT_HULL_M  # noqa: F401  (COST_NAMES: re-exported for readers of the results)
 from .tracker import TrackerBank
 from . import vessel3dof
-from .vessel import extend_route, kinematic_step, los_course, nominal_speed, pad_routes
+from .vessel import extend_route, kinematic_step, leg_speed, los_course, nominal_speed, pad_routes
 
 BATCH_MODES = ("auto", "vmap", "loop")
 
@@ -311,8 +311,9 @@ class _ClosedLoop:
         with the Rule-18 role it shared."""
         s = self.ships[i]
         z = self.seg[r, i]
+        U_d = float(leg_speed(s, z)) if s.leg_speeds is not None else nominal_speed(s, self.t[k])
         own = OwnShip(state=self.states[r, i, k], waypoints=self.routes_ext[i, z: self.n_wp[i]],
-                      U_d=nominal_speed(s, self.t[k]), length=s.length, width=s.width)
+                      U_d=U_d, length=s.length, width=s.width)
         if informed:
             return Situation(own, tuple(self._informed_obstacle(r, i, j, k) for j in range(len(self.ships))
                                         if j != i), self.sc.polygons)
@@ -343,11 +344,12 @@ class _ClosedLoop:
             est = np.array([xs[0], xs[1], xs[3] * np.cos(xs[2]), xs[3] * np.sin(xs[2])])
             cov = self.true_cov
         route = self.shared_route(r, j) if self.sc.mpc.informed.route_exchange else None
+        legs = self.shared_leg_speeds(r, j) if route is not None else None
         if route is not None and route_distance(xs[:2], route) > self.sc.mpc.informed.xtd_threshold:
-            route = None                                      # the XTD supervisor: off its plan, straight line
+            route = legs = None                               # the XTD supervisor: off its plan, straight line
         role_known = self.received_seg[r, j] >= 0
         return Obstacle(state=est, cov=cov, length=max(o.length, POINT_HULL_M),
-                        width=max(o.width, POINT_HULL_M), n_ps=1, waypoints=route,
+                        width=max(o.width, POINT_HULL_M), n_ps=1, waypoints=route, leg_speeds=legs,
                         rule18=bool(role_known and o.rule18_role != "pdv"))
 
     def measure(self, k: int) -> None:
@@ -358,6 +360,15 @@ class _ClosedLoop:
             noise = np.stack([g.normal(size=(self.n_tg, 2)) for g in self.rngs])
             self.tracker.measure(self.states[:, 1:, k, :2] + self.sc.sensor.position_std * noise)
         self.track_x[:, :, k], self.track_P[:, :, k] = self.tracker.x, self.tracker.P
+
+    def nominal(self, k: int) -> np.ndarray:
+        """Nominal speeds ``[R, n]`` at step ``k``: per active leg for ships with ``leg_speeds``, else the speed
+        plan's."""
+        out = np.tile(np.array([nominal_speed(s, self.t[k]) for s in self.ships]), (self.R, 1))
+        for i, s in enumerate(self.ships):
+            if s.leg_speeds is not None:
+                out[:, i] = leg_speed(s, self.seg[:, i])
+        return out
 
     def exchange(self, k: int) -> None:
         """Route exchange at an MPC update: every ship with ``shares_route`` publishes its remaining route (its
@@ -381,6 +392,14 @@ class _ClosedLoop:
         if z < 0:
             return None
         return self.routes_ext[j, z: max(self.n_wp[j], z + 2)]
+
+    def shared_leg_speeds(self, r: int, j: int):
+        """The leg speeds of :meth:`shared_route` (``[m - 1]``), or None (no plan, or no leg speeds)."""
+        route, ship = self.shared_route(r, j), self.ships[j]
+        if route is None or ship.leg_speeds is None:
+            return None
+        z = int(self.received_seg[r, j])
+        return leg_speed(ship, np.arange(z, z + len(route) - 1))
 
     def plan(self, k: int) -> None:
         """One MPC update of every ship with collision avoidance in every run (:mod:`psbmpc_jax.sim.colav`);
@@ -441,7 +460,7 @@ class _ClosedLoop:
         self._apply_sequences(k)
         chi_los, self.seg = los_course(self.states[:, :, k, :2], self.seg, self.routes_ext, self.n_wp,
                                        self.lookahead, self.R_a)
-        U_cmd = self.u_c * np.array([nominal_speed(s, self.t[k]) for s in self.ships])
+        U_cmd = self.u_c * self.nominal(k)
         chi_cmd = chi_los + self.chi_off
         self.states[:, :, k + 1] = kinematic_step(self.states[:, :, k], chi_cmd, U_cmd, self.T_chi, self.T_U,
                                                   self.sc.dt)

@@ -75,6 +75,13 @@ def kinematic_step(state: np.ndarray, chi_cmd, U_cmd, T_chi, T_U, dt: float) -> 
     ], axis=-1)
 
 
+def leg_speed(ship, seg):
+    """The nominal speed of ``ship`` on its active leg ``seg`` (an index into its extended route; beyond the last
+    waypoint the last leg's), for a ship with ``leg_speeds``; ``seg`` may be an array."""
+    legs = np.asarray(ship.leg_speeds, float)
+    return legs[np.minimum(np.asarray(seg), len(legs) - 1)]
+
+
 def nominal_speed(ship, t: float) -> float:
     """The ship's nominal speed U_d at time ``t`` (its speed plan, piecewise constant)."""
     u = ship.U_d
