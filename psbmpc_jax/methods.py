@@ -25,14 +25,15 @@ Table 1 with the SPEC's proposals for what the paper leaves out (SPEC_SEEDS §4.
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass
 
-import numpy as np
+from . import checks
 
 # the cost terms are imported where they are built: loading a scenario (which reads SbmpcSettings) must not
 # import JAX (tests/test_scenario_checks.py)
 
+#: SbmpcSettings fields that must be > 0 (the others >= 0).
+_POSITIVE = ("d_safe", "d_cl", "T_c", "r_P", "V0")
 #: Grid-search methods whose cost terms this module builds.
 SBMPC_FAMILY = ("sbmpc", "psbmpc_2020")
 
@@ -84,24 +85,15 @@ class SbmpcSettings:
     grounding: bool = True
 
     def __post_init__(self):
-        positive = ("d_safe", "d_cl", "T_c", "r_P", "V0")
-        for name in dataclasses.fields(self):
-            v = getattr(self, name.name)
-            if name.name in ("n_mc", "seed"):
-                lo = 1 if name.name == "n_mc" else 0
-                if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not lo <= v <= MAX_N_MC:
-                    raise ValueError(f"SbmpcSettings.{name.name} must be an integer in [{lo}, {MAX_N_MC}], got {v!r}")
-                continue
-            if name.name == "grounding":
+        for f in dataclasses.fields(self):
+            name, v = f"SbmpcSettings.{f.name}", getattr(self, f.name)
+            if f.name in ("n_mc", "seed"):
+                checks.integer(v, name, ge=1 if f.name == "n_mc" else 0, le=MAX_N_MC)
+            elif f.name == "grounding":
                 if not isinstance(v, bool):
-                    raise ValueError(f"SbmpcSettings.grounding must be true or false, got {v!r}")
-                continue
-            if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not math.isfinite(v):
-                raise ValueError(f"SbmpcSettings.{name.name} must be a finite number, got {v!r}")
-            if name.name in positive and not v > 0:
-                raise ValueError(f"SbmpcSettings.{name.name} must be > 0, got {v!r}")
-            if v < 0:
-                raise ValueError(f"SbmpcSettings.{name.name} must be >= 0, got {v!r}")
+                    raise ValueError(f"{name} must be true or false, got {v!r}")
+            else:
+                checks.positive(v, name, allow_zero=f.name not in _POSITIVE)
 
     def manoeuvring(self) -> dict:
         """The weights of Γ (eqs. 10-13) as :class:`~psbmpc_jax.costs.manoeuvring.SmoothManoeuvringTerm` fields."""

@@ -659,9 +659,7 @@ def _informed_spec(d) -> InformedSpec:
     kw = {}
     for key in ("route_exchange", "circular"):
         if key in d:
-            if not isinstance(d[key], bool):
-                raise ValueError(f"{w}.{key} must be true or false, got {show(d[key])}")
-            kw[key] = d[key]
+            kw[key] = _bool(d[key], f"{w}.{key}")
     for key, name in (("xtd_threshold_m", "xtd_threshold"), ("d_init_m", "d_init")):
         if key in d:
             kw[name] = _number(d[key], f"{w}.{key}", gt=0)
@@ -701,9 +699,7 @@ def _sbmpc_spec(d) -> SbmpcSettings:
             continue
         v = d[key]
         if key == "grounding":
-            if not isinstance(v, bool):
-                raise ValueError(f"{w}.grounding must be true or false, got {show(v)}")
-            kw[name] = v
+            kw[name] = _bool(v, f"{w}.grounding")
         elif key in ("n_mc", "seed"):
             lo = 1 if key == "n_mc" else 0
             kw[name] = integer(v, f"{w}.{key}", ge=lo, le=MAX_SBMPC_INT)
@@ -712,6 +708,13 @@ def _sbmpc_spec(d) -> SbmpcSettings:
         else:
             kw[name] = _number(v, f"{w}.{key}", ge=0)
     return dataclasses.replace(base, **kw)
+
+
+def _bool(v, where: str) -> bool:
+    """A YAML ``true`` / ``false`` (not 0/1, not a string)."""
+    if not isinstance(v, bool):
+        raise ValueError(f"{where} must be true or false, got {show(v)}")
+    return v
 
 
 def _choice(v, allowed, where: str) -> str:
@@ -1088,9 +1091,7 @@ def _ship(d, where: str, *, own: bool, ctx: dict) -> ShipSpec:
     if colav != "none" and not U_d > 0:
         raise ValueError(f"{where}: a ship with colav {colav} needs a nominal speed > 0 (nominal_speed_mps, "
                          f"default the initial speed), got {U_d:g} m/s")
-    over_land = d.get("allow_route_over_land", False)
-    if not isinstance(over_land, bool):
-        raise ValueError(f"{where}.allow_route_over_land must be true or false, got {show(over_land)}")
+    over_land = _bool(d.get("allow_route_over_land", False), f"{where}.allow_route_over_land")
     if over_land and not own:
         raise ValueError(f"{where}.allow_route_over_land: allowed only for the own-ship (its controller avoids the "
                          f"land; a target follows its route and would sail through it)")
@@ -1203,9 +1204,7 @@ def _exchange_and_motion(d, where: str) -> dict:
     """``shares_route``, ``rule18_role``, ``motion_model`` and ``vessel_model`` of one ship."""
     out = {}
     if "shares_route" in d:
-        if not isinstance(d["shares_route"], bool):
-            raise ValueError(f"{where}.shares_route must be true or false, got {show(d['shares_route'])}")
-        out["shares_route"] = d["shares_route"]
+        out["shares_route"] = _bool(d["shares_route"], f"{where}.shares_route")
     if "rule18_role" in d:
         out["rule18_role"] = _choice(d["rule18_role"], RULE18_ROLES, f"{where}.rule18_role")
     if "motion_model" in d:

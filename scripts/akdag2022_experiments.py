@@ -27,16 +27,12 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import datetime as dt
-import json
 import math
-import pathlib
-import platform
 import statistics
 import sys
 import time
 
-REPO = pathlib.Path(__file__).resolve().parents[1]
+from _experiments import finish, start
 
 
 def _informed(sc, **kw):
@@ -155,18 +151,11 @@ def main(argv=None) -> int:
     if bad or args.runs < 1:
         p.error(f"--scenarios from {', '.join(VARIANTS)} and --runs >= 1 expected, got {bad or args.runs}")
 
-    import jax
-
-    from psbmpc_jax.provenance import commit
     from psbmpc_jax.scenario import load_scenario
     from psbmpc_jax.sim import simulate
     from psbmpc_jax.sim.output import write_outputs
 
-    stamp = dt.datetime.now(dt.timezone.utc).strftime("%Y%m%dT%H%M%SZ")
-    out = pathlib.Path(args.out or REPO / "benchmarks" / "results" / f"akdag2022_{stamp}")
-    out.mkdir(parents=True, exist_ok=True)
-    doc = {"created_utc": stamp, "commit": commit(), "runs": args.runs, "device": str(jax.devices()[0]),
-           "jax": jax.__version__, "python": platform.python_version(), "results": {}}
+    out, doc = start(args.out, "akdag2022", runs=args.runs)
     for name in names:
         base = load_scenario(name)
         for variant, make in VARIANTS[name].items():
@@ -182,10 +171,7 @@ def main(argv=None) -> int:
             a = doc["results"][name][variant]["aggregate"]
             print(f"{name} / {variant}: first manoeuvre {a['first_manoeuvre_side']}, min distance "
                   f"{a['min_distance_m']}, collisions {a['collisions']} ({wall:.0f} s)", flush=True)
-    (out / "comparison.json").write_text(json.dumps(doc, indent=2) + "\n")
-    (out / "comparison.md").write_text(markdown(doc))
-    print(markdown(doc))
-    print("wrote", out)
+    finish(out, doc, markdown(doc))
     return 0
 
 

@@ -22,15 +22,14 @@ with a larger margin; in B the PSB-MPC turns to starboard and the SB-MPC to port
 from __future__ import annotations
 
 import argparse
-import datetime as dt
-import json
-import pathlib
-import platform
+import dataclasses
+import math
 import statistics
 import sys
 import time
 
-REPO = pathlib.Path(__file__).resolve().parents[1]
+from _experiments import finish, start
+
 SCENARIOS = ("tengesdal2020_a", "tengesdal2020_b")
 METHODS = ("sbmpc", "psbmpc_2020")
 
@@ -119,16 +118,9 @@ def main(argv=None) -> int:
         except ValueError:
             p.error(f"--sbmpc {key}: a number expected, got {value!r}")
 
-    import math
-
-    import jax
-
-    from psbmpc_jax.provenance import commit
     from psbmpc_jax.scenario import load_scenario
     from psbmpc_jax.sim import simulate
     from psbmpc_jax.sim.output import write_outputs
-
-    import dataclasses
 
     names = [s.strip() for s in args.scenarios.split(",") if s.strip()]
     loaded = {(n, m): load_scenario(n, method=m) for n in names for m in METHODS}       # file errors first
@@ -138,12 +130,8 @@ def main(argv=None) -> int:
                 sc.mpc, sbmpc=dataclasses.replace(sc.mpc.sbmpc, **overrides))) for k, sc in loaded.items()}
         except (TypeError, ValueError) as exc:
             p.error(f"--sbmpc: {exc}")
-    stamp = dt.datetime.now(dt.timezone.utc).strftime("%Y%m%dT%H%M%SZ")
-    out = pathlib.Path(args.out or REPO / "benchmarks" / "results" / f"tengesdal2020_{stamp}")
-    out.mkdir(parents=True, exist_ok=True)
-    doc = {"created_utc": stamp, "commit": commit(), "runs": args.runs, "alteration_deg": args.alteration_deg,
-           "device": str(jax.devices()[0]), "jax": jax.__version__, "python": platform.python_version(),
-           "machine": platform.machine(), "sbmpc_overrides": overrides, "results": {}}
+    out, doc = start(args.out, "tengesdal2020", runs=args.runs, alteration_deg=args.alteration_deg,
+                     sbmpc_overrides=overrides)
     for (name, method), sc in loaded.items():
         t0 = time.perf_counter()
         res = simulate(sc, runs=args.runs, seed=args.seed, progress=not args.quiet)
@@ -157,10 +145,7 @@ def main(argv=None) -> int:
         print(f"{sc.name} {method}: {args.runs} runs in {wall:.0f} s; min distance median {a['min_distance_m']['median']} "
               f"m (min {a['min_distance_m']['min']}), < d_safe in {a['d_safe_violations']}, collisions "
               f"{a['collisions']}, first alteration {a['first_alteration']}", flush=True)
-    (out / "comparison.json").write_text(json.dumps(doc, indent=2) + "\n")
-    (out / "comparison.md").write_text(markdown(doc))
-    print(markdown(doc))
-    print("wrote", out)
+    finish(out, doc, markdown(doc))
     return 0
 
 

@@ -83,8 +83,9 @@ def test_sbmpc_terms_are_the_original_forms():
 @pytest.mark.parametrize("kw, match", [
     (dict(d_safe=0.0), r"SbmpcSettings.d_safe must be > 0"),
     (dict(kappa=-1.0), r"SbmpcSettings.kappa must be >= 0"),
-    (dict(T_c=float("nan")), r"SbmpcSettings.T_c must be a finite number"),
-    (dict(n_mc=0), r"SbmpcSettings.n_mc must be an integer in \[1, "),
+    (dict(T_c=float("nan")), r"SbmpcSettings.T_c must be finite \(no NaN/inf\)"),
+    (dict(n_mc=0), r"SbmpcSettings.n_mc must be an integer >= 1, got 0"),
+    (dict(n_mc=2_000_000), r"SbmpcSettings.n_mc must be an integer <= 1000000"),
     (dict(n_mc=2.5), r"SbmpcSettings.n_mc must be an integer"),
     (dict(grounding="yes"), r"SbmpcSettings.grounding must be true or false"),
 ])

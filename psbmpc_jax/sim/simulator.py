@@ -52,6 +52,11 @@ from .vessel import extend_route, kinematic_step, leg_speed, los_course, nominal
 BATCH_MODES = ("auto", "vmap", "loop")
 
 
+def velocity_state(xs) -> np.ndarray:
+    """A true state (x, y, χ, U) as an obstacle estimate ``[x, y, V_x, V_y]``."""
+    return np.array([xs[0], xs[1], xs[3] * np.cos(xs[2]), xs[3] * np.sin(xs[2])])
+
+
 def route_distance(p, route) -> float:
     """Distance [m] from point ``p [2]`` to the polyline ``route [m, 2]`` (the cross-track distance the route
     exchange's supervisor compares with ``mpc.informed.xtd_threshold``)."""
@@ -325,7 +330,7 @@ class _ClosedLoop:
                 est, cov = self.track_x[r, j - 1, k], self.track_P[r, j - 1, k]
             else:
                 xs = self.states[r, j, k]
-                est = np.array([xs[0], xs[1], xs[3] * np.cos(xs[2]), xs[3] * np.sin(xs[2])])
+                est = velocity_state(xs)
                 cov = self.true_cov
             # a point target (length_m: 0) enters with a negligible hull: the planner needs a positive size
             obstacles.append(Obstacle(state=est, cov=cov, length=max(o.length, POINT_HULL_M),
@@ -341,7 +346,7 @@ class _ClosedLoop:
         if i == 0:
             est, cov = self.track_x[r, j - 1, k], self.track_P[r, j - 1, k]
         else:
-            est = np.array([xs[0], xs[1], xs[3] * np.cos(xs[2]), xs[3] * np.sin(xs[2])])
+            est = velocity_state(xs)
             cov = self.true_cov
         route = self.shared_route(r, j) if self.sc.mpc.informed.route_exchange else None
         legs = self.shared_leg_speeds(r, j) if route is not None else None
