@@ -193,6 +193,7 @@ def test_d_init_gate_rests_the_planner():
     res = simulate(scenario_from_dict(scen(mpc__informed={"d_init_m": 500})), runs=2)      # target 1.5 km away
     assert np.all(res.offsets[:, 0] == np.array([1.0, 0.0]))
     assert all(c["device_calls"] == 0 for c in res.calls)
+    assert np.all(np.isnan(res.solve_wall[:, 0])) and res.metrics[0]["solve_times_s"] == []   # no solve timed
     res = simulate(scenario_from_dict(scen()), runs=2)
     assert all(c["device_calls"] >= 1 for c in res.calls)
 

@@ -214,7 +214,7 @@ class GridGroup:
         # resting planners apply (1, 0) and forget their last offsets (SPEC_SEEDS §3.4)
         first = np.tile([1.0, 0.0], (len(jobs), 1))
         costs = np.full((len(jobs), len(COST_NAMES)), np.nan)
-        walls = np.zeros(len(jobs))
+        walls = np.full(len(jobs), np.nan)             # no solve: not a solve time (metrics skip NaN)
         busy = [n for n, a in enumerate(active) if a]
         calls, wall, kept, kept_job = 0, 0.0, None, None
         if busy:
