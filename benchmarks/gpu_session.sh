@@ -5,6 +5,8 @@
 #   OUT=/some/dir bash benchmarks/gpu_session.sh bench     # paper sweep on the GPU, same-host CPU fig5, large
 #                                                          # behaviour tables, batched closed loop
 #   OUT=/some/dir bash benchmarks/gpu_session.sh tests     # the test suite on the GPU (bounded; verbose log)
+#   OUT=/some/dir bash benchmarks/gpu_session.sh dense     # exact grounding: culled vs dense search (fig5, fig9),
+#                                                          # then fig10/fig6s/fig7s with the dense search
 #   SMALL=1 OUT=/tmp/x bash benchmarks/gpu_session.sh bench   # dry run at toy sizes (any machine)
 #
 # Wheels of packages missing on the device image (shapely, pyshp) are installed from .whl/ when that folder
@@ -53,6 +55,29 @@ elif [ "$what" = paper ]; then
   timeout -s INT -k 10 45 bash -c "$(declare -f pj); pj bench --preset fig5 --grounding grid --devices gpu \
     --reference-budget 0 --repeats 5 --warmup 1 --quiet --out $OUT/bench_gpu_fig5_grid.jsonl" 2>&1 | tail -3
   OUT=$OUT TEST_TIMEOUT=${TEST_TIMEOUT:-240} bash "$0" tests
+elif [ "$what" = dense ]; then
+  # the exact grounding searches side by side (culled vs dense, PlannerConfig.grounding_search), then the
+  # paper figures the first GPU session did not reach, with the faster search; each step bounded on its own
+  if [ -n "${SMALL:-}" ]; then
+    R=2; DEV=cpu; F5="--sweep n_cbs --values 9,39 --n-ps 1 --T 10"; F9="--sweep n_cbs --values 9 --T 10"
+    F10="--sweep n_so --values 1,2 --T 10"; F6S="--sweep n_ps --values 1,3 --T 10"; F7S="$F6S"
+  else
+    R=10; DEV=gpu; F5="--preset fig5"; F9="--preset fig9"; F10="--preset fig10"; F6S="--preset fig6s"
+    F7S="--preset fig7s"
+  fi
+  b() { local lim=$1 name=$2; shift 2
+    timeout -s INT -k 10 "$lim" bash -c "$(declare -f pj); pj bench $* --devices $DEV --reference-budget 0 \
+      --repeats $R --warmup 1 --quiet --out $OUT/$name.jsonl" 2>&1 | tail -2; }
+  timeout 60 python3 -m pytest -q -p no:cacheprovider -p no:randomly -n 2 tests/test_sharding.py \
+    tests/test_layers.py tests/test_grounding_kernel.py -k "device or private or dense" > "$OUT/tests_gpu_targeted.log" 2>&1
+  tail -3 "$OUT/tests_gpu_targeted.log"
+  for s in dense culled; do b 75 bench_gpu_fig5 $F5 --grounding-search $s; done
+  for s in dense culled; do b 45 bench_gpu_fig9 $F9 --grounding-search $s; done
+  b 90 bench_gpu_fig10 $F10 --grounding-search dense
+  b 60 bench_gpu_fig6s $F6S --grounding-search dense
+  b 80 bench_gpu_fig7s $F7S --grounding-search dense
+  b 40 bench_gpu_fig10 $F10 --grounding-search culled
+  ls -la "$OUT"
 elif [ "$what" = tests ]; then
   timeout "${TEST_TIMEOUT:-300}" python3 -m pytest -v -n "${WORKERS:-12}" --dist loadfile -p no:cacheprovider \
     --timeout 240 -W ignore > "$OUT/tests_gpu.log" 2>&1

@@ -93,7 +93,8 @@ SCHEMA = "psbmpc-bench/1"
 SWEEPS = ("n_cbs", "n_ps", "n_do", "n_so", "n_vertices")
 ESTIMATORS = ("quadrature", "mc", "ce")
 FIELDS = ("schema", "sweep", "swept", "impl", "platform", "device_kind", "n_devices", "host", "estimator", "dtype",
-          "grounding_mode", "n_M", "n_cbs", "n_do", "n_ps", "n_so", "n_vertices", "n_ct", "T", "dt", "compile_s",
+          "grounding_mode", "grounding_search", "n_M", "n_cbs", "n_do", "n_ps", "n_so", "n_vertices", "n_ct", "T",
+          "dt", "compile_s",
           "times_ms", "median_ms", "min_ms", "max_ms", "q1_ms", "q3_ms", "peak_memory_bytes", "memory_source",
           "compiled_memory_bytes", "r_ct", "best", "n_pc_blocks", "schedule", "skipped", "skip_reason", "versions", "commit", "timestamp")
 
@@ -302,6 +303,8 @@ def add_bench_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--estimator", choices=ESTIMATORS, default="quadrature")
     p.add_argument("--dtype", choices=("float32", "float64"), default="float32")
     p.add_argument("--grounding", choices=("exact", "grid"), default="exact", help="grounding mode")
+    p.add_argument("--grounding-search", choices=("culled", "dense"), default="culled",
+                   help="exact mode's worst-time-step search (PlannerConfig.grounding_search; default culled)")
     p.add_argument("--n-m", type=int, choices=(1, 2), default=None,
                    help="paper behaviour set for sweeps other than n_cbs: 1 -> 39, 2 -> 1014 (default)")
     p.add_argument("--n-ps", type=odd_int, default=None, help="scenarios per obstacle when not swept (odd, "
@@ -420,6 +423,7 @@ class Runner:
         rec = dict.fromkeys(FIELDS)
         rec.update(schema=SCHEMA, sweep=p.sweep, swept=p.swept, impl=impl, host=self.meta["host"],
                    estimator=self.args.estimator, dtype=self.args.dtype, grounding_mode=self.args.grounding,
+                   grounding_search=self.args.grounding_search,
                    n_M=int(behaviours.shape[1]), n_cbs=n_cbs, n_do=n_do, n_ps=int(n_ps), n_so=n_so,
                    n_vertices=n_vertices(situation), n_ct=n_cbs * (n_so + n_do * int(n_ps)), T=float(p.T),
                    r_ct=float(p.r_ct),
@@ -581,7 +585,7 @@ def run_bench(args) -> int:
 
     def config_for(p):
         return PlannerConfig(T=p.T, dt=args.dt, estimator=args.estimator, dtype=args.dtype,
-                             grounding_mode=args.grounding)
+                             grounding_mode=args.grounding, grounding_search=args.grounding_search)
 
     # interleaved: one timing group per (sweep, device run); sequential: one group per point
     sweeps = [list(g) for _, g in itertools.groupby(points, key=lambda p: p.sweep)]

@@ -381,6 +381,94 @@ def polygon_argmax(px, py, tw, score, bound, edges, nxt, n, with_direction=True,
     return lax.cond(overflow, lambda: _full_argmax(px, py, tw, score, edges, n), lambda: k)
 
 
+# ------------------------------------------------------------------------------------------ dense search
+def _dense_nearest(px, py, edges, n, block):
+    """Every valid edge, ``block`` edge slots at a time (one ``[block, T, B]`` evaluation per loop step): the
+    smallest squared distance, the slot of its edge (the first of equal ones, as :func:`_scan_edges`) and the
+    even-odd inside flag.  Few long loop steps instead of many short ones: the GPU-friendly layout."""
+    V = edges.shape[0]
+    nb = -(-V // block)
+    rows = jnp.pad(edges, ((0, nb * block - V), (0, 0))).reshape(nb, block, 8)
+    slot = jnp.arange(block)
+    big = jnp.finfo(px.dtype).max
+
+    def body(i, carry):
+        d2, best, inside = carry
+        e = rows[i]
+        _, _, e2, cross = _edge_terms(px[None], py[None], tuple(e[:, c, None, None] for c in range(8)))
+        valid = (i * block + slot < n)[:, None, None]
+        e2 = jnp.where(valid, e2, big)
+        j = jnp.argmin(e2, axis=0).astype(jnp.int32)
+        m = jnp.take_along_axis(e2, j[None], axis=0)[0]
+        closer = m < d2
+        odd = (jnp.sum((cross & valid).astype(jnp.int32), axis=0) & 1) == 1
+        best = jnp.where(closer, (i * block).astype(jnp.int32) + j, best)
+        return jnp.where(closer, m, d2), best, inside ^ odd
+
+    init = (jnp.full(px.shape, big, px.dtype), jnp.zeros(px.shape, jnp.int32), jnp.zeros(px.shape, bool))
+    return lax.fori_loop(0, (n + block - 1) // block, body, init)
+
+
+def dense_distances(px, py, edges, n, *, block=32):
+    """:func:`polygon_distance` (with direction, not differentiable) by the dense search: ``d, ex, ey`` of the
+    points ``px, py [T, B]`` to one polygon (edge table ``edges [V, 8]``, ``n`` valid edges)."""
+    px, py, edges = (lax.stop_gradient(a) for a in (px, py, edges))
+    d2, best, inside = _dense_nearest(px, py, edges, n, block)
+    qx, qy, e2, _ = _edge_terms(px, py, tuple(edges[best, c] for c in range(8)))
+    near = ~inside & (n > 0)
+    d = jnp.where(inside, 0.0, safe_sqrt(jnp.where(n > 0, e2, d2)))
+    return d, jnp.where(near, -qx, 0.0), jnp.where(near, -qy, 0.0)
+
+
+#: Largest ``block * T * B`` of one dense loop step (2^25 elements: 128 MiB per float32 temporary).
+DENSE_STEP_ELEMENTS = 1 << 25
+
+
+def dense_block(n_points: int, largest: int = 32) -> int:
+    """Edges per dense loop step for ``n_points`` = T * B points: the largest power of two <= ``largest`` whose
+    step stays within :data:`DENSE_STEP_ELEMENTS` (at least 1)."""
+    b = largest
+    while b > 1 and b * n_points > DENSE_STEP_ELEMENTS:
+        b //= 2
+    return b
+
+
+def dense_argmax(px, py, tw, score, edges, n, with_direction=True, *, block=None):
+    """:func:`polygon_argmax` without culling: every polygon's every valid edge against every point, ``block``
+    edges per loop step (``[P, B]`` int32; 0 for a polygon with ``n`` = 0; ``block`` None:
+    :func:`dense_block` of the point count).  The same answer as the culled
+    search (the first of equal maxima up to rounding); fewer, wider steps: faster where the culled search's
+    many small loop steps dominate (a GPU), slower and ``block``x the memory on a CPU."""
+    px, py, tw, edges = (lax.stop_gradient(a) for a in (px, py, tw, edges))
+    T, B = px.shape
+    if edges.shape[0] == 0:
+        return jnp.zeros((0, B), jnp.int32)
+    block = dense_block(T * B) if block is None else block
+
+    def one(_, poly):
+        e, k = poly
+        d, ex, ey = dense_distances(px, py, e, k, block=block)
+        ex, ey = jnp.where(with_direction, ex, 0.0), jnp.where(with_direction, ey, 0.0)
+        best = jnp.argmax(score(d, ex, ey, tw[:, None]), axis=0).astype(jnp.int32)
+        return None, jnp.where(k > 0, best, 0)
+
+    return lax.scan(one, None, (edges, n))[1]
+
+
+#: Values of ``PlannerConfig.grounding_search``.
+GROUNDING_SEARCHES = ("culled", "dense")
+
+
+def search_argmax(search, px, py, tw, score, bound, edges, nxt, n, with_direction=True):
+    """:func:`polygon_argmax` (``search="culled"``) or :func:`dense_argmax` (``"dense"``; ``bound`` and
+    ``nxt`` unused): the two exact searches behind one call."""
+    if search == "dense":
+        return dense_argmax(px, py, tw, score, edges, n, with_direction)
+    if search == "culled":
+        return polygon_argmax(px, py, tw, score, bound, edges, nxt, n, with_direction)
+    raise ValueError(f"grounding search must be one of {GROUNDING_SEARCHES}, got {search!r}")
+
+
 def culled_distances(px, py, edges, nxt, n, *, tile=32, chunk=8, chunk_cap=16):
     """Distance and nearest-boundary vector of the points ``px, py [T, B]`` to every polygon through the
     culled kernel: ``d, ex, ey [P, T, B]`` (as :func:`polygon_distance`, not differentiable) and whether a

@@ -169,12 +169,15 @@ def load_results(paths) -> list[dict]:
 
 # ------------------------------------------------------------------------------------------- analysis
 def impl_label(rec: dict) -> str:
-    """"reference" for the sequential reference, else "JAX-<PLATFORM>" (+ " x<n>" when n_devices > 1)."""
+    """"reference" for the sequential reference, else "JAX-<PLATFORM>" (+ " x<n>" when n_devices > 1, + " dense"
+    for the exact mode's dense grounding search; records without the field used the culled one)."""
     if rec["impl"] == "reference":
         return "reference"
     lab = f"{rec['impl'].upper()}-{rec['platform'].upper()}"
     if rec["n_devices"] > 1:
         lab += f" x{rec['n_devices']}"
+    if rec.get("grounding_mode") == "exact" and rec.get("grounding_search", "culled") == "dense":
+        lab += " dense"
     return lab
 
 

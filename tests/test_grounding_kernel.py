@@ -18,7 +18,8 @@ import pytest
 from psbmpc_jax import reference as ref
 from psbmpc_jax.costs.grounding import grid_grounding_cost, grounding_costs
 from psbmpc_jax.distance_grid import build_distance_grid
-from psbmpc_jax.geometry import culled_distances, edge_table, polygon_argmax, polygon_distance
+from psbmpc_jax.geometry import (culled_distances, dense_argmax, dense_distances, edge_table, polygon_argmax,
+                                 polygon_distance, search_argmax)
 from psbmpc_jax.params import Params, PlannerConfig
 from psbmpc_jax.situation import ring_vertices
 
@@ -143,8 +144,40 @@ def test_argmax_skips_tiles_bounded_by_zero_but_not_land():
     assert np.any(ref.polygon_distances(pts, big)[0].reshape(T, B)[:, : B // 2] == 0.0)
 
 
+@pytest.mark.parametrize("seed,block", [(0, 32), (2, 5), (4, 1)])
+def test_dense_search_equals_full_kernel_and_culled_search(seed, block):
+    """The dense search (every edge, ``block`` edges per loop step) finds the same nearest edges as the full
+    kernel and the same worst time step as the culled search, on random charts with holes, tiny rings, a
+    zero-length edge, points on vertices and edges, and a padding polygon (n = 0)."""
+    rng = np.random.default_rng(seed)
+    polys = random_chart(rng)
+    verts, nxt, n = pack_chart(polys)
+    n = n.at[-1].set(0)
+    T, B = 30, 6
+    px, py = trajectories(rng, T, B, polys)
+    tables = edge_table(verts, nxt)
+    for j, (fd, fex, fey) in enumerate(full_distances(px, py, verts, nxt, n)):
+        d, ex, ey = (np.asarray(a) for a in dense_distances(px, py, tables[j], n[j], block=block))
+        np.testing.assert_allclose(d, fd, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(ex, fex, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(ey, fey, rtol=0, atol=1e-9)
+    tw = jnp.exp(-0.01 * DT * jnp.arange(T))
+    score = lambda d, ex, ey, w: w * (1.0 + 0.3 * ex / (1.0 + d)) / (1.0 + d * d)       # uses the direction
+    bound = lambda d, w: jnp.full_like(d, jnp.inf)
+    for wd in (True, False):
+        want = np.asarray(polygon_argmax(px, py, tw, score, bound, tables, nxt, n, wd))
+        got = np.asarray(dense_argmax(px, py, tw, score, tables, n, wd, block=block))
+        np.testing.assert_array_equal(got, want)
+        np.testing.assert_array_equal(np.asarray(search_argmax("dense", px, py, tw, score, bound, tables, nxt, n,
+                                                               wd)), want)
+    assert np.all(got[-1] == 0)
+    with pytest.raises(ValueError, match="grounding search must be one of"):
+        search_argmax("fast", px, py, tw, score, bound, tables, nxt, n)
+
+
+@pytest.mark.parametrize("search", ["culled", "dense"])
 @pytest.mark.parametrize("wind", [0.0, 4.0])
-def test_grounding_costs_equal_reference(wind):
+def test_grounding_costs_equal_reference(wind, search):
     rng = np.random.default_rng(3)
     polys = random_chart(rng)
     verts, nxt, n = pack_chart(polys)
@@ -152,7 +185,7 @@ def test_grounding_costs_equal_reference(wind):
     px, py = trajectories(rng, T, B, polys)
     params = Params(V_w=wind, wind_dir=0.7)
     mask = jnp.asarray([True] * (len(polys) - 1) + [False])                   # the last polygon is padding
-    h = np.asarray(grounding_costs(px, py, jnp.arange(T) * DT, verts, nxt, n, mask, params))
+    h = np.asarray(grounding_costs(px, py, jnp.arange(T) * DT, verts, nxt, n, mask, params, search))
     cfg = PlannerConfig(dt=DT)
     for j, poly in enumerate(polys[:-1]):
         for b in range(B):

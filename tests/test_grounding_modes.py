@@ -89,7 +89,27 @@ def test_driving_into_the_bank_costs_more_than_staying_in_the_channel(mode):
     assert abs(np.rad2deg(res.chi_opt)) <= 15
 
 
+@pytest.mark.parametrize("seed", [0, 1])
+def test_dense_grounding_search_gives_the_culled_plan(seed):
+    """PlannerConfig.grounding_search="dense" (the GPU layout) changes how the worst time step is found, not
+    the costs: every behaviour's costs and the chosen behaviour equal the culled search's."""
+    rng = np.random.default_rng(seed)
+    own = OwnShip([0.0, 0.0, 0.0, 2.0], [[0.0, 0.0], [500.0, 0.0]], 2.0)
+    polys = channel() + (star(rng, 12, rng.uniform(50, 250), rng.uniform(-25, 25), 2.0, 8.0),)
+    sit = Situation(own, (Obstacle([200.0, 5.0, -2.0, 0.0], np.diag([4.0, 4.0, 0.1, 0.1]), n_ps=3),), polys)
+    beh = paper_behaviours(1)
+    base = dict(T=60.0, dt=0.5, dtype="float64")
+    culled, _ = Planner(PlannerConfig(**base), behaviours=beh).plan(sit)
+    dense, _ = Planner(PlannerConfig(grounding_search="dense", **base), behaviours=beh).plan(sit)
+    for term in culled.costs:
+        np.testing.assert_allclose(dense.costs[term], culled.costs[term], rtol=1e-12, atol=0)
+    np.testing.assert_allclose(dense.grounding_per_polygon, culled.grounding_per_polygon, rtol=1e-12, atol=0)
+    assert dense.best_index == culled.best_index and np.max(culled.costs["so"]) > 0
+
+
 def test_grid_bad_input():
+    with pytest.raises(ValueError, match="grounding_search must be one of"):
+        PlannerConfig(grounding_search="fast")
     with pytest.raises(ValueError, match="grounding_mode"):
         PlannerConfig(grounding_mode="fast")
     with pytest.raises(ValueError, match="grid_spacing"):

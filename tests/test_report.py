@@ -52,6 +52,15 @@ def test_impl_label_multi_device():
     assert report.impl_label(r) == "JAX-GPU x4"
 
 
+def test_impl_label_dense_grounding_search():
+    """Records of the dense exact search are their own series; records without the field used the culled one."""
+    r = json.loads(GPU.read_text().splitlines()[0])
+    r.pop("grounding_search", None)
+    assert report.impl_label(dict(r, grounding_mode="exact")) == "JAX-GPU"
+    assert report.impl_label(dict(r, grounding_mode="exact", grounding_search="dense")) == "JAX-GPU dense"
+    assert report.impl_label(dict(r, grounding_mode="grid", grounding_search="dense")) == "JAX-GPU"
+
+
 def test_report_contents(rendered):
     _, out, md = rendered
     assert (out / "report.md").exists()

@@ -5,7 +5,8 @@ next vertex of the same ring: a polygon may hold several rings — outer ring an
 ``n_vertices [P]`` (valid slots = edges).
 
 Exact mode: H_so^{l,j} = max_k g(d_{j,k}, t_k).  The maximising time of every (polygon, behaviour) is found by
-the culled search :func:`psbmpc_jax.geometry.polygon_argmax` (exact, not differentiated); the cost is then g
+the culled search :func:`psbmpc_jax.geometry.polygon_argmax` or the dense one (``PlannerConfig.grounding_search``;
+exact, not differentiated); the cost is then g
 at that point, from the point's nearest edge (:func:`psbmpc_jax.geometry.polygon_distance`).  The gradient of
 a max is the gradient at its argmax, so the cost is reverse- and forward-differentiable w.r.t. the positions.
 """
@@ -16,7 +17,7 @@ import jax
 import jax.numpy as jnp
 
 from ..distance_grid import interpolate
-from ..geometry import edge_table, polygon_argmax, polygon_distance
+from ..geometry import edge_table, polygon_distance, search_argmax
 from ..numerics import safe_sqrt
 
 
@@ -53,15 +54,16 @@ def _search_score(params):
     return score, bound
 
 
-def grounding_costs(px, py, t, vertices, nxt, n_vertices, poly_mask, params):
+def grounding_costs(px, py, t, vertices, nxt, n_vertices, poly_mask, params, search="culled"):
     """H_so^{l,j} for every polygon: own positions ``px, py [T, B]`` (time-major), times ``t [T]`` -> ``[P, B]``.
 
-    Padding polygons (``poly_mask`` False) cost 0."""
+    Padding polygons (``poly_mask`` False) cost 0.  ``search`` (static): the argmax search, ``"culled"`` or
+    ``"dense"`` (:func:`psbmpc_jax.geometry.search_argmax`; the same costs)."""
     tables = edge_table(vertices, nxt)                                          # [P, V, 8]
     score, bound = _search_score(params)
     windy = (params.V_w * params.G2) != 0                  # the nearest-point direction matters
-    k = polygon_argmax(px, py, jnp.exp(-params.G4 * t), score, bound, tables, nxt,
-                       jnp.where(poly_mask, n_vertices, 0), windy)               # [P, B]
+    k = search_argmax(search, px, py, jnp.exp(-params.G4 * t), score, bound, tables, nxt,
+                      jnp.where(poly_mask, n_vertices, 0), windy)                # [P, B]
     cols = jnp.arange(px.shape[1])
 
     def one(carry, poly):

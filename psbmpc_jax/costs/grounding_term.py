@@ -25,7 +25,8 @@ class GroundingTerm:
             so_j = jnp.where(grid.active, h, 0.0)[:, None]                       # [B, 1]: nearest land
         else:
             poly = ctx.world.polygons
-            so_j = grounding_costs(own.x, own.y, t, poly.vertices, poly.next, poly.n, poly.mask, params).T
+            so_j = grounding_costs(own.x, own.y, t, poly.vertices, poly.next, poly.n, poly.mask, params,
+                                   config.grounding_search).T
         # no polygons: a [B, 0] max would be NaN in forward mode; costs are >= 0, padding costs 0
         value = jnp.max(so_j, axis=1) if so_j.shape[1] else jnp.zeros(so_j.shape[:1], own.x.dtype)
         return TermValue(value, {"so_j": so_j})

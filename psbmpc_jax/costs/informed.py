@@ -28,7 +28,7 @@ import jax
 import jax.numpy as jnp
 
 from ..distance_grid import interpolate
-from ..geometry import edge_table, polygon_argmax, polygon_distance
+from ..geometry import edge_table, polygon_distance, search_argmax
 from ..numerics import safe_sqrt
 from .base import Context, TermValue, cost_term
 from .colregs_fuzzy import check_choice, check_param
@@ -205,8 +205,8 @@ def _g_shape(d, d_static_safe, q_g):
 def max_grounding_penalty(ctx: Context, config, d_static_safe, p_g, q_g):
     """max over t ≥ t₀ + T_s of 𝓖(d(t), t) per row ``[B]``, d = distance to the nearest chart polygon (0 inside).
 
-    Exact mode: per polygon the maximising time from the culled search
-    (:func:`psbmpc_jax.geometry.polygon_argmax`; 𝓖 falls with d, so max_t 𝓖(min_j d_j) = max_j max_t 𝓖(d_j)),
+    Exact mode: per polygon the maximising time from the exact search
+    (:func:`psbmpc_jax.geometry.search_argmax`, ``config.grounding_search``; 𝓖 falls with d, so max_t 𝓖(min_j d_j) = max_j max_t 𝓖(d_j)),
     then 𝓖 there from the point's nearest edge.  ``config.grounding_mode == "grid"``: d from the distance grid."""
     own, t = ctx.own, ctx.t
     n_b = own.x.shape[1]
@@ -238,7 +238,8 @@ def max_grounding_penalty(ctx: Context, config, d_static_safe, p_g, q_g):
     def bound(d, tw):
         return score(d, None, None, tw)
 
-    k = polygon_argmax(own.x, own.y, w, score, bound, tables, poly.next, n_edges, False)      # [P, B]
+    k = search_argmax(getattr(config, "grounding_search", "culled"), own.x, own.y, w, score, bound, tables,
+                      poly.next, n_edges, False)                                               # [P, B]
     cols = jnp.arange(n_b)
 
     def one(edges, n, kj, valid):
