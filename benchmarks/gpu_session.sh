@@ -68,15 +68,14 @@ elif [ "$what" = dense ]; then
   b() { local lim=$1 name=$2; shift 2
     timeout -s INT -k 10 "$lim" bash -c "$(declare -f pj); pj bench $* --devices $DEV --reference-budget 0 \
       --repeats $R --warmup 1 --quiet --out $OUT/$name.jsonl" 2>&1 | tail -2; }
-  timeout 60 python3 -m pytest -q -p no:cacheprovider -p no:randomly -n 2 tests/test_sharding.py \
+  timeout 60 python3 -m pytest -q -o addopts="" -p no:cacheprovider -n 2 tests/test_sharding.py \
     tests/test_layers.py tests/test_grounding_kernel.py -k "device or private or dense" > "$OUT/tests_gpu_targeted.log" 2>&1
   tail -3 "$OUT/tests_gpu_targeted.log"
-  for s in dense culled; do b 75 bench_gpu_fig5 $F5 --grounding-search $s; done
-  for s in dense culled; do b 45 bench_gpu_fig9 $F9 --grounding-search $s; done
-  b 90 bench_gpu_fig10 $F10 --grounding-search dense
-  b 60 bench_gpu_fig6s $F6S --grounding-search dense
-  b 80 bench_gpu_fig7s $F7S --grounding-search dense
-  b 40 bench_gpu_fig10 $F10 --grounding-search culled
+  for s in culled dense; do b 75 bench_gpu_fig5 $F5 --grounding-search $s; done
+  b 75 bench_gpu_fig10 $F10 --grounding-search culled
+  for s in culled dense; do b 40 bench_gpu_fig9 $F9 --grounding-search $s; done
+  b 55 bench_gpu_fig6s $F6S --grounding-search culled
+  b 70 bench_gpu_fig7s $F7S --grounding-search culled
   ls -la "$OUT"
 elif [ "$what" = tests ]; then
   timeout "${TEST_TIMEOUT:-300}" python3 -m pytest -v -n "${WORKERS:-12}" --dist loadfile -p no:cacheprovider \

@@ -62,7 +62,7 @@ def _scan_edges(px, py, edges, n, track_best):
     return lax.fori_loop(0, n, body, init)
 
 
-def polygon_distance(px, py, edges, n, with_direction=True):
+def polygon_distance(px, py, edges, n, with_direction=True, *, block=1):
     """Distance from points ``px, py [...]`` to one polygon given by its edge table ``edges [V, 8]`` and ``n``
     valid edges.
 
@@ -70,12 +70,17 @@ def polygon_distance(px, py, edges, n, with_direction=True):
     boundary point (0 inside).  With ``with_direction`` (static) the nearest edge is found without gradients
     and (d, ex, ey) are computed from it: reverse- and forward-differentiable w.r.t. ``px, py``.  Without it
     (the distance-grid build) the loop does not track the nearest edge (about 15 % less work), (ex, ey) are
-    zeros and d is forward-only."""
+    zeros and d is forward-only.  ``block`` (static): edges per loop step of the nearest-edge search with
+    direction (1: one edge per step; > 1: :func:`_dense_nearest`, the same edge, fewer and wider steps - the
+    choice for few points and many edges, above all on a GPU)."""
     if not with_direction:
         d2, _, inside = _scan_edges(px, py, edges, n, track_best=False)
         zero = jnp.zeros_like(px)
         return jnp.where(inside, 0.0, safe_sqrt(d2)), zero, zero
-    d2, best, inside = _scan_edges(px, py, edges, n, track_best=True)
+    if block > 1:
+        d2, best, inside = _dense_nearest(*(lax.stop_gradient(a) for a in (px, py, edges)), n, block)
+    else:
+        d2, best, inside = _scan_edges(px, py, edges, n, track_best=True)
     qx, qy, e2, _ = _edge_terms(px, py, tuple(edges[best, i] for i in range(8)))
     near = ~inside & (n > 0)
     d = jnp.where(inside, 0.0, safe_sqrt(jnp.where(n > 0, e2, d2)))   # gradient-safe on the boundary
@@ -391,12 +396,13 @@ def _dense_nearest(px, py, edges, n, block):
     rows = jnp.pad(edges, ((0, nb * block - V), (0, 0))).reshape(nb, block, 8)
     slot = jnp.arange(block)
     big = jnp.finfo(px.dtype).max
+    lead = (block,) + (1,) * px.ndim                # edge columns against points of any shape
 
     def body(i, carry):
         d2, best, inside = carry
         e = rows[i]
-        _, _, e2, cross = _edge_terms(px[None], py[None], tuple(e[:, c, None, None] for c in range(8)))
-        valid = (i * block + slot < n)[:, None, None]
+        _, _, e2, cross = _edge_terms(px[None], py[None], tuple(e[:, c].reshape(lead) for c in range(8)))
+        valid = (i * block + slot < n).reshape(lead)
         e2 = jnp.where(valid, e2, big)
         j = jnp.argmin(e2, axis=0).astype(jnp.int32)
         m = jnp.take_along_axis(e2, j[None], axis=0)[0]

@@ -157,10 +157,11 @@ def test_dense_search_equals_full_kernel_and_culled_search(seed, block):
     px, py = trajectories(rng, T, B, polys)
     tables = edge_table(verts, nxt)
     for j, (fd, fex, fey) in enumerate(full_distances(px, py, verts, nxt, n)):
-        d, ex, ey = (np.asarray(a) for a in dense_distances(px, py, tables[j], n[j], block=block))
-        np.testing.assert_allclose(d, fd, rtol=0, atol=1e-9)
-        np.testing.assert_allclose(ex, fex, rtol=0, atol=1e-9)
-        np.testing.assert_allclose(ey, fey, rtol=0, atol=1e-9)
+        for fn in (dense_distances, polygon_distance):
+            d, ex, ey = (np.asarray(a) for a in fn(px, py, tables[j], n[j], block=block))
+            np.testing.assert_allclose(d, fd, rtol=0, atol=1e-9)
+            np.testing.assert_allclose(ex, fex, rtol=0, atol=1e-9)
+            np.testing.assert_allclose(ey, fey, rtol=0, atol=1e-9)
     tw = jnp.exp(-0.01 * DT * jnp.arange(T))
     score = lambda d, ex, ey, w: w * (1.0 + 0.3 * ex / (1.0 + d)) / (1.0 + d * d)       # uses the direction
     bound = lambda d, w: jnp.full_like(d, jnp.inf)

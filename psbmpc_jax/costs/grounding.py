@@ -17,7 +17,7 @@ import jax
 import jax.numpy as jnp
 
 from ..distance_grid import interpolate
-from ..geometry import edge_table, polygon_distance, search_argmax
+from ..geometry import dense_block, edge_table, polygon_distance, search_argmax
 from ..numerics import safe_sqrt
 
 
@@ -68,7 +68,7 @@ def grounding_costs(px, py, t, vertices, nxt, n_vertices, poly_mask, params, sea
 
     def one(carry, poly):
         edges, n, kj, valid = poly
-        d, ex, ey = polygon_distance(px[kj, cols], py[kj, cols], edges, n)
+        d, ex, ey = polygon_distance(px[kj, cols], py[kj, cols], edges, n, block=dense_block(cols.shape[0]))
         g = grounding_g(d, t[kj], _wind_phi(d, ex, ey, params), params)
         return carry, jnp.where(valid, g, 0.0)
 
