@@ -303,8 +303,9 @@ def add_bench_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--estimator", choices=ESTIMATORS, default="quadrature")
     p.add_argument("--dtype", choices=("float32", "float64"), default="float32")
     p.add_argument("--grounding", choices=("exact", "grid"), default="exact", help="grounding mode")
-    p.add_argument("--grounding-search", choices=("culled", "dense"), default="culled",
-                   help="exact mode's worst-time-step search (PlannerConfig.grounding_search; default culled)")
+    p.add_argument("--grounding-search", choices=("auto", "culled", "dense"), default="auto",
+                   help="exact mode's layout (PlannerConfig.grounding_search; default auto: culled on the CPU, "
+                        "dense on a GPU; records hold the one used)")
     p.add_argument("--n-m", type=int, choices=(1, 2), default=None,
                    help="paper behaviour set for sweeps other than n_cbs: 1 -> 39, 2 -> 1014 (default)")
     p.add_argument("--n-ps", type=odd_int, default=None, help="scenarios per obstacle when not swept (odd, "
@@ -423,7 +424,7 @@ class Runner:
         rec = dict.fromkeys(FIELDS)
         rec.update(schema=SCHEMA, sweep=p.sweep, swept=p.swept, impl=impl, host=self.meta["host"],
                    estimator=self.args.estimator, dtype=self.args.dtype, grounding_mode=self.args.grounding,
-                   grounding_search=self.args.grounding_search,
+                   grounding_search=None,
                    n_M=int(behaviours.shape[1]), n_cbs=n_cbs, n_do=n_do, n_ps=int(n_ps), n_so=n_so,
                    n_vertices=n_vertices(situation), n_ct=n_cbs * (n_so + n_do * int(n_ps)), T=float(p.T),
                    r_ct=float(p.r_ct),
@@ -476,7 +477,7 @@ class Runner:
         else:
             rec.update(peak_memory_bytes=max(0, peak_rss_bytes() - rss0), memory_source="process_rss")
         rec.update(platform=dev.platform, device_kind=dev.device_kind, n_devices=len(devices) if multi else 1,
-                   compile_s=round(compile_s, 4), schedule=self.args.schedule, compiled_memory_bytes=planned)
+                   grounding_search=config.grounding_search, compile_s=round(compile_s, 4), schedule=self.args.schedule, compiled_memory_bytes=planned)
         return {"point": p, "call": call, "rec": rec, "ev": ev, "times": []}
 
     def time_jax(self, slots) -> tuple[list, bool]:
@@ -562,6 +563,7 @@ def run_bench(args) -> int:
         return run_refine_bench(args)
     points = build_plan(args)
     platforms = select_devices(args.devices)
+    from .geometry import resolve_search
     from .params import PlannerConfig
 
     # no persistent compilation cache here and the in-memory one is cleared per point (prepare_jax):
@@ -583,9 +585,10 @@ def run_bench(args) -> int:
         val = ("skipped" if rec["skipped"] else f"{rec['median_ms']:.1f} ms")
         print(f"[{done}/{total}] {p.label()} {what} {val}", file=sys.stderr, flush=True)
 
-    def config_for(p):
+    def config_for(p, platform="cpu"):
         return PlannerConfig(T=p.T, dt=args.dt, estimator=args.estimator, dtype=args.dtype,
-                             grounding_mode=args.grounding, grounding_search=args.grounding_search)
+                             grounding_mode=args.grounding,
+                             grounding_search=resolve_search(args.grounding_search, platform))
 
     # interleaved: one timing group per (sweep, device run); sequential: one group per point
     sweeps = [list(g) for _, g in itertools.groupby(points, key=lambda p: p.sweep)]
@@ -598,7 +601,7 @@ def run_bench(args) -> int:
                 for group in groups:
                     slots = []
                     for p, beh, sit in group:
-                        slots.append(runner.prepare_jax(p, sit, beh, config_for(p), devs, multi))
+                        slots.append(runner.prepare_jax(p, sit, beh, config_for(p, devs[0].platform), devs, multi))
                         if not args.quiet and len(group) > 1:
                             print(f"[{done}/{total}] {p.label()} jax/{devs[0].platform} compiled in "
                                   f"{slots[-1]['rec']['compile_s']:.1f} s", file=sys.stderr, flush=True)

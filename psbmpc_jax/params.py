@@ -70,9 +70,10 @@ class PlannerConfig:
         grounding_mode: ``"exact"`` (every polygon edge, every point; per-polygon costs) or ``"grid"``
             (bilinear lookup in a nearest-land distance grid built once per chart; relative error of the
             grounding cost <= exp(G3·grid_spacing/√2) − 1 without wind; see :mod:`psbmpc_jax.distance_grid`).
-        grounding_search: the exact mode's search for each polygon's worst time step: ``"culled"`` (tiles
-            and edge chunks culled by bounds, many short loop steps; the CPU's choice) or ``"dense"`` (every
-            edge against every point, 32 edges per loop step; fewer, wider steps for a GPU).  Same costs.
+        grounding_search: the exact mode's layout: ``"culled"`` (each polygon's worst time step by a search
+            culling tiles and edge chunks by bounds, many short loop steps: the CPU's choice), ``"dense"``
+            (every edge against every point, 32 edges per loop step: fewer, wider steps, the GPU's choice) or
+            ``"auto"`` (culled on the CPU, dense elsewhere, by JAX's default backend).  Same costs.
         grid_spacing, grid_margin: grid resolution [m] and the margin around the polygons [m] (outside it the
             distance is taken as ``grid_margin``).
     """
@@ -89,7 +90,7 @@ class PlannerConfig:
     chunk_rows: int = 512
     pc_layout: str = "compact"
     grounding_mode: str = "exact"
-    grounding_search: str = "culled"
+    grounding_search: str = "auto"
     grid_spacing: float = 0.5
     grid_margin: float = 100.0
 
@@ -112,7 +113,7 @@ class PlannerConfig:
             raise ValueError(f"PlannerConfig.T / PlannerConfig.dt = {round(n)} prediction steps; at most "
                              f"{MAX_HORIZON_STEPS} allowed (T={self.T} s, dt={self.dt} s)")
         for name, allowed in (("estimator", ESTIMATORS), ("dtype", DTYPES), ("grounding_mode", ("exact", "grid")),
-                              ("grounding_search", ("culled", "dense")),
+                              ("grounding_search", ("auto", "culled", "dense")),
                               ("pc_layout", ("compact", "dense"))):
             v = getattr(self, name)
             if not isinstance(v, str) or v not in allowed:

@@ -76,9 +76,20 @@ def test_smoke_preset_end_to_end(tmp_path):
     assert [r["n_cbs"] for r in jax_recs] == [9, 39] and len(ref_recs) == 2
     assert all(r["sweep"] == "smoke" and r["swept"] == "n_cbs" and r["T"] == 10.0 for r in recs)
     assert all(len(r["times_ms"]) == 2 for r in jax_recs)
+    assert all(r["grounding_search"] == "culled" for r in jax_recs)      # auto on the CPU: the layout used
+    assert all(r["grounding_search"] is None for r in ref_recs)
     for j, r in zip(jax_recs, ref_recs):   # same situation, same answer (default budget is ample here)
         assert not r["skipped"] and len(r["times_ms"]) == 1
         assert r["best"] == j["best"]
+
+
+def test_dense_grounding_search_is_recorded_and_chooses_the_same_behaviour(tmp_path):
+    out = tmp_path / "d.jsonl"
+    for search in ("culled", "dense"):
+        assert main(["bench", *ONE_POINT, "--grounding-search", search, "--reference-budget", "0", "--out",
+                     str(out), *FAST]) == 0
+    recs = [r for r in read(out) if r["impl"] == "jax"]
+    assert [r["grounding_search"] for r in recs] == ["culled", "dense"] and recs[0]["best"] == recs[1]["best"]
 
 
 def test_budget_zero_marks_reference_skipped_and_append_keeps_lines(tmp_path):

@@ -19,7 +19,7 @@ from psbmpc_jax import reference as ref
 from psbmpc_jax.costs.grounding import grid_grounding_cost, grounding_costs
 from psbmpc_jax.distance_grid import build_distance_grid
 from psbmpc_jax.geometry import (culled_distances, dense_argmax, dense_distances, edge_table, polygon_argmax,
-                                 polygon_distance, search_argmax)
+                                 polygon_distance, resolve_search, search_argmax)
 from psbmpc_jax.params import Params, PlannerConfig
 from psbmpc_jax.situation import ring_vertices
 
@@ -174,6 +174,15 @@ def test_dense_search_equals_full_kernel_and_culled_search(seed, block):
     assert np.all(got[-1] == 0)
     with pytest.raises(ValueError, match="grounding search must be one of"):
         search_argmax("fast", px, py, tw, score, bound, tables, nxt, n)
+
+
+def test_auto_search_is_culled_on_the_cpu_and_dense_elsewhere():
+    assert resolve_search("auto", "cpu") == "culled"
+    assert resolve_search("auto", "gpu") == "dense" and resolve_search("auto", "tpu") == "dense"
+    assert resolve_search("dense", "cpu") == "dense" and resolve_search("culled", "gpu") == "culled"
+    assert resolve_search("auto") == ("culled" if jax.default_backend() == "cpu" else "dense")
+    with pytest.raises(ValueError, match="grounding search must be one of"):
+        resolve_search("grid")
 
 
 @pytest.mark.parametrize("search", ["culled", "dense"])

@@ -28,7 +28,7 @@ import jax
 import jax.numpy as jnp
 
 from ..distance_grid import interpolate
-from ..geometry import dense_block, edge_table, polygon_distance, search_argmax
+from ..geometry import dense_block, edge_table, polygon_distance, resolve_search, search_argmax
 from ..numerics import safe_sqrt
 from .base import Context, TermValue, cost_term
 from .colregs_fuzzy import check_choice, check_param
@@ -238,12 +238,13 @@ def max_grounding_penalty(ctx: Context, config, d_static_safe, p_g, q_g):
     def bound(d, tw):
         return score(d, None, None, tw)
 
-    k = search_argmax(getattr(config, "grounding_search", "culled"), own.x, own.y, w, score, bound, tables,
-                      poly.next, n_edges, False)                                               # [P, B]
+    search = resolve_search(getattr(config, "grounding_search", "auto"))
+    k = search_argmax(search, own.x, own.y, w, score, bound, tables, poly.next, n_edges, False)   # [P, B]
+    block = dense_block(n_b) if search == "dense" else 1
     cols = jnp.arange(n_b)
 
     def one(edges, n, kj, valid):
-        d, _, _ = polygon_distance(own.x[kj, cols], own.y[kj, cols], edges, n, block=dense_block(n_b))
+        d, _, _ = polygon_distance(own.x[kj, cols], own.y[kj, cols], edges, n, block=block)
         return jnp.where(valid, w[kj] * _g_shape(d, d_static_safe, q_g), 0.0)
 
     h = jax.vmap(one)(tables, n_edges, k, poly.mask)                                          # [P, B]
