@@ -193,13 +193,15 @@ def sbmpc_cost(own_traj, targets, t, *, component: str = "joint", aggregation: s
                K_coll: float = 1.0, p: float = 1.0, q: float = 4.0, w_coll: float = 0.1, kappa: float = 10.0,
                d_cl: float = 40.0, e_cl: float = 5.0, eps: float = 1e-6, n_y: int = 201,
                completion: str = "default_false", risk: str = "smooth", colregs: str = "fis",
-               lambda_T: float = 0.0, applied_traj=None) -> float:
+               lambda_T: float = 0.0, applied_traj=None, joint_extra=None) -> float:
     """Aggregated SB-MPC hazard of one own-ship trajectory ``[T, 4]`` against target trajectories (a list of
     ``[T, 4]``) at times ``t [T]`` (``t[0]`` = τ₀ is skipped).  ``component``: ``"coll"`` (σCR or crisp CR),
     ``"colregs"`` (κμ) or ``"joint"`` (their sum per (target, time)); ``aggregation``: ``"max"`` or ``"sum"``
     over (target, time); no target gives 0.  ``lambda_T > 0`` with ``applied_traj [T, 4]`` (the rollout of the
     applied offsets) adds λ·T per (target, time) to the joint component: T = 1 when the target is in a
-    transitional situation now and passes on the other side than under the applied offsets (τ ≥ τ₀ + T_s)."""
+    transitional situation now and passes on the other side than under the applied offsets (τ ≥ τ₀ + T_s).
+    ``joint_extra [T]`` (an own-ship-only term, seed 001's ζ) is added per (target, time) to the joint
+    component; with no target the result is then max over τ ≥ τ₀ + T_s of ``joint_extra``."""
     if aggregation not in ("max", "sum"):
         raise ValueError(f"aggregation must be 'max' or 'sum', got {aggregation!r}")
     if component not in ("coll", "colregs", "joint"):
@@ -232,11 +234,16 @@ def sbmpc_cost(own_traj, targets, t, *, component: str = "joint", aggregation: s
                 h += kappa * mu
             if component == "joint":
                 h += lambda_T * T_i
+                if joint_extra is not None:
+                    h += float(joint_extra[k])
             if aggregation == "sum":
                 out += h
             elif first or h > out:
                 out = h
             first = False
+    if first and joint_extra is not None and component == "joint" and len(own_traj) > 1:
+        extra = np.asarray(joint_extra, dtype=float)[1:]
+        out = float(np.sum(extra)) if aggregation == "sum" else float(np.max(extra))
     return float(out)
 
 

@@ -439,12 +439,22 @@ class SbmpcHazardTerm:
                     e_cl=self.e_cl, eps=self.eps, n_y=self.n_y, completion=self.completion, risk=self.risk,
                     colregs=self.colregs)
 
-    def __call__(self, ctx: Context, params, config, samples) -> TermValue:
-        o, x, t, _ = context_pairs(ctx)
+    def pair_kwargs(self) -> dict:
+        """The keyword arguments of :func:`pair_components` (and of the float64 reference) this term uses."""
+        return self._kw()
+
+    def pair_hazard(self, ctx: Context):
+        """The per-(τ ≥ τ₀ + T_s, target, behaviour) hazard ``h [K, O·S, B]`` before aggregation (C R + κ μ
+        [+ λ T]), with the target mask ``valid [O·S]``."""
+        o, x, t, valid = context_pairs(ctx)
         coll, mu = pair_components(*o, *x, t, **self._kw())
         h = coll + self.kappa * mu
         if self.transitional:
             h = h + self.lambda_T * transitional_indicator(ctx, self.d_cl)[None]
+        return h, valid
+
+    def __call__(self, ctx: Context, params, config, samples) -> TermValue:
+        h, _ = self.pair_hazard(ctx)
         return term_value(ctx, h, self.aggregation, "sbmpc_i")
 
     def reference(self, own_traj, behaviour, situation, params, config, last_offsets=(1.0, 0.0)):
