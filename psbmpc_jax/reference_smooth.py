@@ -247,6 +247,20 @@ def sbmpc_cost(own_traj, targets, t, *, component: str = "joint", aggregation: s
     return float(out)
 
 
+def land_distance(points, polygons) -> np.ndarray:
+    """Distance of each point ``[K, 2]`` to the nearest of the situation's ``polygons`` (0 inside; +inf with
+    none), from the float64 polygon distance of :mod:`psbmpc_jax.reference`."""
+    from . import reference as ref
+    from .situation import polygon_rings
+
+    pts = np.asarray(points, dtype=float).reshape(-1, 2)
+    d = np.full(len(pts), np.inf)
+    for poly in polygons:
+        rings = polygon_rings(poly)
+        d = np.minimum(d, ref.polygon_distances(pts, rings[0] if len(rings) == 1 else tuple(rings))[0])
+    return d
+
+
 # ------------------------------------------------------------------------------------------ manoeuvring
 def side_weight(z: float, upper_port: float, upper_stbd: float, s_chi: float) -> float:
     return upper_port * sigmoid(z, 0.0, -s_chi) + upper_stbd * sigmoid(z, 0.0, s_chi)

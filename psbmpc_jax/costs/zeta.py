@@ -108,14 +108,11 @@ class SbmpcZetaTerm:
         hazard's own float64 reference."""
         import numpy as np
 
-        from .. import reference as ref
         from .. import reference_smooth as rs
 
         own_traj = np.asarray(own_traj, dtype=float)
         t = np.arange(len(own_traj)) * float(config.dt)
-        d = np.full(len(own_traj), np.inf)
-        for poly in situation.polygons:
-            d = np.minimum(d, ref.polygon_distances(own_traj[:, :2], ref_rings(poly))[0])
+        d = rs.land_distance(own_traj[:, :2], situation.polygons)
         z = np.where(d <= self.d_close,
                      (np.exp(-self.eta1 * np.abs(d - self.d_safe_g)) if self.shape == "printed" else
                       np.where(d >= self.d_safe_g, np.exp(-self.eta1 * (d - self.d_safe_g)),
@@ -127,13 +124,6 @@ class SbmpcZetaTerm:
                              aggregation="max", kappa=hz.kappa, lambda_T=hz.lambda_T if hz.transitional else 0.0,
                              applied_traj=applied, joint_extra=z, **hz.pair_kwargs())
 
-
-def ref_rings(poly):
-    """A situation polygon as the float64 reference takes it (a ring or a tuple of rings)."""
-    from ..situation import polygon_rings
-
-    rings = polygon_rings(poly)
-    return rings[0] if len(rings) == 1 else tuple(rings)
 
 
 __all__ = ["ZETA_SHAPES", "DEFAULT_ETA1", "DEFAULT_ETA2", "DEFAULT_D_CLOSE", "zeta_cost", "own_land_distance",
