@@ -125,6 +125,5 @@ class SbmpcZetaTerm:
                              applied_traj=applied, joint_extra=z, **hz.pair_kwargs())
 
 
-
 __all__ = ["ZETA_SHAPES", "DEFAULT_ETA1", "DEFAULT_ETA2", "DEFAULT_D_CLOSE", "zeta_cost", "own_land_distance",
-           "SbmpcZetaTerm", "ref_rings"]
+           "SbmpcZetaTerm"]
