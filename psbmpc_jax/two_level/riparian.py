@@ -4,9 +4,12 @@ left by the land, computed once per leg from the chart and cached.
 
 For leg j (WP_j -> WP_{j+1}, course ψ_j, length l_j; path frame of :mod:`.path_frame`):
 
-1. **Crossing land (C-001-8).** The land pieces (connected parts of the union of the land,
-   :func:`~.static_obstacles.land_pieces`) that meet the closed leg segment become static obstacles: their
-   minimum enclosing circle plus ``circle_margin`` (:func:`crossing_land_circles`); they are left out of RG.
+1. **Crossing land (C-001-8).** A land piece (a connected part of the union of the land,
+   :func:`~.static_obstacles.land_pieces`) that meets the closed leg segment is split
+   (:func:`split_crossing`): its part within ``margin`` of the segment becomes a static obstacle, the minimum
+   enclosing circle of that part plus ``circle_margin``; the rest of the piece outside the circle stays land
+   (in RG).  So a peninsula of a bank that crosses the route becomes a circle while the bank still bounds
+   the corridor; a whole bank polygon would otherwise become one circle that closes the channel.
 2. **RG** = the other land pieces within ``radius`` (R_RG) of the leg *segment* (not of the own-ship: the
    corridor is computed once per leg).  Before buffering, RG is clipped to the leg's rectangle
    [−h, l_j + h] × [−h, h] (path frame), h = half_width + margin + 1 m: this only drops land that no ray can
@@ -173,7 +176,27 @@ def _segments(w: np.ndarray, legs) -> list:
     return [LineString([w[j], w[j + 1]]) for j in legs]
 
 
-def crossing_land_circles(waypoints, land_polygons, margin: float = DEFAULT_CIRCLE_MARGIN, *, legs=None):
+def split_crossing(piece, segments, reach: float | None, circle_margin: float):
+    """C-001-8 for one land ``piece`` that meets the leg ``segments``: the circle ``(centre, radius)``
+    enclosing the part of the piece within ``reach`` [m] of them (None: the whole piece) (+ ``circle_margin``),
+    and the rest of the piece outside that circle (a list of polygons, possibly empty).  The rest lies at
+    least ``reach`` from the segments.  The corridor uses ``reach`` = 2 × its buffer margin, so the buffered
+    rest stays a margin away from the leg."""
+    if reach is None:
+        return enclosing_circle(piece, circle_margin), []
+    band = shapely.union_all([sg.buffer(max(reach, 1e-9)) for sg in segments])
+    near = piece.intersection(band)
+    if near.is_empty:                              # touching at a point (reach 0): the point itself
+        near = piece.intersection(shapely.union_all(list(segments)))
+    centre, r = enclosing_circle(near, 0.0)
+    q = 64
+    disk = shapely.Point(centre).buffer(r / math.cos(math.pi / (4 * q)) + 1e-9, quad_segs=q)   # covers the circle
+    rest = [g for g in shapely.get_parts(piece.difference(disk)) if isinstance(g, Polygon) and g.area > 0]
+    return (centre, r + circle_margin), rest
+
+
+def crossing_land_circles(waypoints, land_polygons, margin: float = DEFAULT_CIRCLE_MARGIN, *, legs=None,
+                          reach: float | None = None):
     """C-001-8: the land pieces (:func:`~.static_obstacles.land_pieces`) that meet a leg segment (closed:
     touching counts) of ``legs`` (default: every leg), as static circles (minimum enclosing circle +
     ``margin`` >= 0 [m], one per piece, in piece order), and the other pieces.
@@ -185,11 +208,15 @@ def crossing_land_circles(waypoints, land_polygons, margin: float = DEFAULT_CIRC
     n_legs = len(w) - 1
     legs = range(n_legs) if legs is None else [check_leg_index(j, len(w), "legs[]") for j in legs]
     segs = _segments(w, legs)
-    crossing, remaining = [], []
+    pairs, remaining = [], []
     for p in land_pieces(land_polygons):
-        (crossing if any(p.intersects(s) for s in segs) else remaining).append(p)
-    circles = StaticCircles.from_pairs([enclosing_circle(p, margin) for p in crossing])
-    return circles, remaining
+        if any(p.intersects(sg) for sg in segs):
+            pair, rest = split_crossing(p, [sg for sg in segs if p.intersects(sg)], reach, margin)
+            pairs.append(pair)
+            remaining.extend(rest)
+        else:
+            remaining.append(p)
+    return StaticCircles.from_pairs(pairs), remaining
 
 
 # ------------------------------------------------------------------------------------------ one leg
@@ -206,8 +233,14 @@ def _compute_leg(a, b, pieces, half_width, sample, radius, margin, circle_margin
     n = np.array([-t[1], t[0]])
     psi = math.atan2(d[1], d[0])
     seg = LineString([a, b])
-    crossing = [p for p in pieces if p.intersects(seg)]
-    rg = [p for p in pieces if not p.intersects(seg) and p.distance(seg) <= radius]
+    circles, rg = [], []
+    for p in pieces:
+        if p.intersects(seg):
+            pair, rest = split_crossing(p, [seg], 2.0 * margin, circle_margin)
+            circles.append(pair)
+            rg.extend(q for q in rest if q.distance(seg) <= radius)
+        elif p.distance(seg) <= radius:
+            rg.append(p)
 
     # leg-local coordinates (origin WP_j), clipped to the rectangle no ray can see past
     h = half_width + margin + CLIP_PAD
@@ -237,8 +270,7 @@ def _compute_leg(a, b, pieces, half_width, sample, radius, margin, circle_margin
     corridor = LegCorridor(_readonly(s), _readonly(np.asarray(lower, float)), _readonly(np.asarray(upper, float)),
                            _readonly(np.asarray(inside, bool)), _readonly(a), _readonly(np.float64(psi)),
                            _readonly(np.float64(length)))
-    circles = tuple(enclosing_circle(p, circle_margin) for p in crossing)
-    return corridor, circles
+    return corridor, tuple(circles)
 
 
 def _add_circles(out, circles) -> None:
@@ -353,5 +385,5 @@ def corridor_residuals(positions, corridor: LegCorridor):
 
 
 __all__ = ["LegCorridor", "DEFAULT_HALF_WIDTH", "DEFAULT_SAMPLE", "DEFAULT_CIRCLE_MARGIN", "CACHE_SIZE",
-           "land_key", "crossing_land_circles", "leg_corridor", "leg_corridors", "corridor_bounds",
+           "land_key", "crossing_land_circles", "split_crossing", "leg_corridor", "leg_corridors", "corridor_bounds",
            "corridor_residuals", "clear_corridor_cache", "corridor_cache_info"]
