@@ -16,7 +16,8 @@ from .cache import enable_compilation_cache
 
 #: ``psbmpc-jax run --method`` choices (the same as psbmpc_jax.scenario.METHODS; kept here so that building the
 #: parser imports nothing heavy).
-METHODS = ("psbmpc", "psbmpc_refine", "smooth_sbmpc", "sbmpc_init")
+METHODS = ("psbmpc", "psbmpc_refine", "smooth_sbmpc", "sbmpc_init", "sbmpc", "psbmpc_2020", "informed_sbmpc",
+           "two_level")
 
 DESCRIPTION = """\
 PSB-MPC ship collision avoidance in JAX.
@@ -162,7 +163,8 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--method", choices=METHODS, default=None,
                    help="the own-ship's controller, overriding the file's mpc.method: psbmpc (grid search), "
                         "psbmpc_refine (grid search + gradient refinement), smooth_sbmpc (Smooth-SBMPC, seed 000), "
-                        "sbmpc_init (its initialisation stage alone: the original SB-MPC). The results go to "
+                        "sbmpc_init (its initialisation stage alone: the original SB-MPC), sbmpc, psbmpc_2020, "
+                        "informed_sbmpc, two_level (the two-level MPC, seed 001). The results go to "
                         "OUT/SCENARIO_METHOD, so methods can be compared side by side")
     p.add_argument("--runs", type=runs_int, default=None, help="Monte Carlo runs (default: the file's)")
     p.add_argument("--seed", type=seed_int, default=None,

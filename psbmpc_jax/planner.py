@@ -76,6 +76,7 @@ class Planner:
         self.terms = check_terms(DEFAULT_TERMS if terms is None else terms)
         self.capacities = capacities
         self._grids: dict[str, DistanceGrid] = {}
+        self._grid_regions: list = []          # (chart+origin key, region, key of _grids)
         self._device_params: tuple | None = None      # (params object, its device arrays)
         self._world: tuple | None = None              # (polygons content key, origin, grid, packed world)
         self.origin: np.ndarray | None = None
@@ -109,11 +110,19 @@ class Planner:
         key = polygons_key(situation.polygons, self.config.grid_spacing, self.config.grid_margin, region) \
             + f"@{o[0]!r},{o[1]!r}"
         if key not in self._grids:
+            # a cached grid of the same chart and origin that covers the region serves as well (a reach that
+            # shrinks with the speed would otherwise rebuild - and recompile - the grid at every solve)
+            base = polygons_key(situation.polygons, self.config.grid_spacing, self.config.grid_margin) \
+                + f"@{o[0]!r},{o[1]!r}"
+            for b, reg, k in self._grid_regions:
+                if b == base and all(reg[0][i] <= region[0][i] and reg[1][i] >= region[1][i] for i in (0, 1)):
+                    return self._grids[k]
             lo, hi = (np.asarray(c, dtype=float) - o for c in region)
             grid = build_distance_grid(shift_polygons(situation.polygons, o), self.config.grid_spacing,
                                        self.config.grid_margin, dtype=np.dtype(self.config.dtype),
                                        region=(tuple(lo), tuple(hi)))
             self._grids[key] = grid._replace(origin=lo + o)
+            self._grid_regions.append((base, region, key))
         return self._grids[key]
 
     def _packed_world(self, situation: Situation) -> WorldArrays:

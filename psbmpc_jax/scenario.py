@@ -43,13 +43,14 @@ from .situation import MAX_N_PS
 #: refinement, Smooth-SBMPC (seed 000) and its initialisation stage alone (the paper's "original SB-MPC", Sim 01),
 #: the original SB-MPC and the PSB-MPC of seed 004 (:mod:`psbmpc_jax.methods`); the closed-loop registry is
 #: :data:`psbmpc_jax.sim.methods.REGISTRY`.
-METHODS = ("psbmpc", "psbmpc_refine", "smooth_sbmpc", "sbmpc_init", "sbmpc", "psbmpc_2020", "informed_sbmpc")
+METHODS = ("psbmpc", "psbmpc_refine", "smooth_sbmpc", "sbmpc_init", "sbmpc", "psbmpc_2020", "informed_sbmpc",
+           "two_level")
 #: Values of a ship's ``colav``: no collision avoidance, or a method.
 COLAV_MODES = ("none",) + METHODS
 #: The methods of seed 000 (their own model and tuning; the PSB-MPC preset only supplies defaults).
 SMOOTH_METHODS = ("smooth_sbmpc", "sbmpc_init")
 #: Methods only the own-ship may run (the Smooth-SBMPC planner plans ship 0).
-OWN_SHIP_ONLY_METHODS = SMOOTH_METHODS
+OWN_SHIP_ONLY_METHODS = SMOOTH_METHODS + ("two_level",)
 #: The preset a smooth-method file without ``mpc.preset`` gets its defaults from (5 m river vessels).
 SMOOTH_DEFAULT_PRESET = "nidelva"
 
@@ -244,6 +245,52 @@ class InformedSpec:
 
 
 @dataclass(frozen=True)
+class TwoLevelSpec:
+    """``mpc.two_level``: the two-level MPC of seed 001 (docs/two_level.md; defaults SPEC_SEEDS §2.3-2.4 at
+    fjord scale).  SI units and radians inside (the file gives degrees where a key ends in ``_deg``).
+
+    Attributes:
+        N_p, dt: the upper level's steps and step [s].  Q, M: its weights of (x, y, χ, U) errors and of the
+            (χ_d, U_d) moves.  chi_span: the course box around the leg angle [rad].  U_max: speed bound [m/s].
+            r_os: own-ship circle radius [m] (added to every static circle).
+        corridor_half_width, corridor_sample, corridor_radius, corridor_margin, circle_margin: Algorithm 1 and
+            C-001-8 [m].  r_accept: leg switching radius [m].
+        beta, d_critical, compare: the targets' ground-avoiding prediction (eq. 2; β [rad per step]).
+        eta1, eta2, d_close, zeta_d_safe, zeta_shape: ζ of eq. (15).
+        nominal, plan_stride: the SB-MPC's nominal references (``plan`` / ``hold``).
+        static_obstacles: circles ``((north, east), radius)`` [m].
+        sbmpc_T, sbmpc_dt: the lower level's horizon and step [s] (None: ``mpc.config``'s T and dt).
+    """
+
+    N_p: int = 30
+    dt: float = 1.0
+    Q: tuple = (1e-3, 1e-3, 1.0, 1.0)
+    M: tuple = (10.0, 1.0)
+    chi_span: float = math.pi / 2
+    U_max: float = 5.0
+    r_os: float = 5.0
+    corridor_half_width: float = 50.0
+    corridor_sample: float = 5.0
+    corridor_radius: float = 500.0
+    corridor_margin: float = 7.0
+    circle_margin: float = 2.0
+    r_accept: float = 20.0
+    beta: float = math.radians(5.0)
+    d_critical: float = 50.0
+    compare: str = "plus"
+    eta1: float = 0.25
+    eta2: float = 0.01
+    d_close: float = 50.0
+    zeta_d_safe: float = 50.0
+    zeta_shape: str = "printed"
+    nominal: str = "plan"
+    plan_stride: int = 5
+    static_obstacles: tuple = ()
+    sbmpc_T: float | None = None
+    sbmpc_dt: float | None = None
+
+
+@dataclass(frozen=True)
 class MPCSpec:
     """The own-ship's controller and the PSB-MPC tuning every psbmpc ship uses.
 
@@ -258,7 +305,9 @@ class MPCSpec:
         smooth, fis, solver, refine: the settings of the other methods (defaults when not in the file; each
             is used only by the methods it belongs to).
         sbmpc: the settings of ``sbmpc`` and ``psbmpc_2020`` (``mpc.sbmpc``: a preset of
-            :data:`psbmpc_jax.methods.SBMPC_PRESETS` with the file's overrides), used by every ship running one.
+            :data:`psbmpc_jax.methods.SBMPC_PRESETS` with the file's overrides), used by every ship running one
+            (and by the lower level of ``two_level``).
+        two_level: the settings of ``two_level`` (``mpc.two_level``, :class:`TwoLevelSpec`).
     """
 
     preset: str
@@ -274,6 +323,7 @@ class MPCSpec:
     refine: RefineSpec = field(default_factory=RefineSpec)
     sbmpc: SbmpcSettings = field(default_factory=SbmpcSettings)
     informed: InformedSpec = field(default_factory=InformedSpec)
+    two_level: TwoLevelSpec = field(default_factory=TwoLevelSpec)
 
 
 @dataclass(frozen=True)
@@ -324,7 +374,7 @@ class Scenario:
 # ====================================================================================================== loading
 __all__ = [
     "ShipSpec", "SensorSpec", "MPCSpec", "InformedSpec", "RULE18_ROLES", "MOTION_MODELS", "VESSEL_MODELS",
-    "INFORMED_TERM_FIELDS", "SmoothSpec", "FisSpec", "SolverSpec", "RefineSpec", "Scenario",
+    "INFORMED_TERM_FIELDS", "TwoLevelSpec", "SmoothSpec", "FisSpec", "SolverSpec", "RefineSpec", "Scenario",
     "COLAV_MODES", "METHODS", "SMOOTH_METHODS", "OWN_SHIP_ONLY_METHODS", "KNOT", "SCENARIO_DIR",
     "scenario_from_dict", "load_scenario", "builtin_scenarios", "estimator_key",
 ]
@@ -349,7 +399,7 @@ _TOP_REQUIRED = ("name", "simulation", "mpc", "own_ship")
 _SIM_KEYS = ("dt_s", "duration_s")
 _MC_KEYS = ("runs", "seed")
 _MPC_KEYS = ("preset", "update_period_s", "n_ps", "config", "params", "speed_factors", "course_offsets_deg",
-             "method", "smooth", "fis", "solver", "refine", "sbmpc", "informed")
+             "method", "smooth", "fis", "solver", "refine", "sbmpc", "informed", "two_level")
 _SMOOTH_KEYS = ("T_init_s", "T_mpc_s", "dt_s", "corridor_half_width_m", "domain_radius_m", "k_ntp", "terminal",
                 "n_starts")
 _FIS_KEYS = ("d_cl_m", "e_cl_m", "eps", "n_y", "completion")
@@ -645,7 +695,94 @@ def _mpc(d, dt: float) -> MPCSpec:
     return MPCSpec(preset=preset, config=cfg, params=prm, behaviours=np.asarray(behaviours, dtype=float),
                    n_ps=int(n_ps), period=period, method=method, smooth=smooth, fis=fis, solver=solver,
                    refine=refine, sbmpc=_sbmpc_spec(d.get("sbmpc", {}) or {}),
-                   informed=_informed_spec(d.get("informed", {}) or {}))
+                   informed=_informed_spec(d.get("informed", {}) or {}),
+                   two_level=_two_level_spec(d.get("two_level", {}) or {}))
+
+
+_TWO_LEVEL_KEYS = ("N_p", "dt_s", "Q_diag", "M_diag", "chi_span_deg", "U_max_mps", "r_os_m", "corridor", "r_accept_m",
+                   "prediction", "zeta", "nominal", "plan_stride", "static_obstacles", "sbmpc_T_s", "sbmpc_dt_s")
+_TL_CORRIDOR_KEYS = ("half_width_m", "sample_m", "radius_m", "margin_m", "circle_margin_m")
+_TL_PREDICTION_KEYS = ("beta_deg", "d_critical_m", "compare")
+_TL_ZETA_KEYS = ("eta1", "eta2", "d_close_m", "d_safe_m", "shape")
+
+
+def _two_level_spec(d) -> TwoLevelSpec:
+    w = "mpc.two_level"
+    d = _mapping(d, w)
+    _check_keys(d, _TWO_LEVEL_KEYS, w)
+    kw: dict = {}
+    if "N_p" in d:
+        kw["N_p"] = integer(d["N_p"], f"{w}.N_p", ge=1, le=MAX_METHOD_STEPS)
+    if "plan_stride" in d:
+        kw["plan_stride"] = integer(d["plan_stride"], f"{w}.plan_stride", ge=1, le=MAX_METHOD_STEPS)
+    for key, name in (("dt_s", "dt"), ("U_max_mps", "U_max"), ("r_accept_m", "r_accept"), ("sbmpc_T_s", "sbmpc_T"),
+                      ("sbmpc_dt_s", "sbmpc_dt")):
+        if key in d:
+            kw[name] = _number(d[key], f"{w}.{key}", gt=0)
+    if ("sbmpc_T_s" in d) != ("sbmpc_dt_s" in d):
+        raise ValueError(f"{w}.sbmpc_T_s and {w}.sbmpc_dt_s must be given together")
+    if "sbmpc_T" in kw:
+        multiple_of(kw["sbmpc_T"], kw["sbmpc_dt"], f"{w}.sbmpc_T_s", f"{w}.sbmpc_dt_s")
+    if "U_max_mps" in kw and kw["U_max"] > MAX_SPEED_MPS:
+        raise ValueError(f"{w}.U_max_mps must be <= {MAX_SPEED_MPS} m/s, got {kw['U_max']}")
+    if "r_os_m" in d:
+        kw["r_os"] = _number(d["r_os_m"], f"{w}.r_os_m", ge=0)
+    if "chi_span_deg" in d:
+        v = _number(d["chi_span_deg"], f"{w}.chi_span_deg", gt=0)
+        if v >= 180:
+            raise ValueError(f"{w}.chi_span_deg must be in (0, 180), got {v:g}")
+        kw["chi_span"] = math.radians(v)
+    for key, name, n in (("Q_diag", "Q", 4), ("M_diag", "M", 2)):
+        if key in d:
+            v = d[key]
+            if not isinstance(v, (list, tuple)) or len(v) != n:
+                raise ValueError(f"{w}.{key} must be a list of {n} weights >= 0, got {v!r}"[:300])
+            kw[name] = tuple(_number(x, f"{w}.{key}[{i}]", ge=0) for i, x in enumerate(v))
+    if "nominal" in d:
+        kw["nominal"] = _choice(d["nominal"], ("plan", "hold"), f"{w}.nominal")
+    sub = _mapping(d.get("corridor", {}) or {}, f"{w}.corridor")
+    _check_keys(sub, _TL_CORRIDOR_KEYS, f"{w}.corridor")
+    for key, name, lo in (("half_width_m", "corridor_half_width", "gt"), ("sample_m", "corridor_sample", "gt"),
+                          ("radius_m", "corridor_radius", "gt"), ("margin_m", "corridor_margin", "ge"),
+                          ("circle_margin_m", "circle_margin", "ge")):
+        if key in sub:
+            kw[name] = _number(sub[key], f"{w}.corridor.{key}", **{lo: 0})
+    sub = _mapping(d.get("prediction", {}) or {}, f"{w}.prediction")
+    _check_keys(sub, _TL_PREDICTION_KEYS, f"{w}.prediction")
+    if "beta_deg" in sub:
+        v = _number(sub["beta_deg"], f"{w}.prediction.beta_deg", gt=0)
+        if v >= 180:
+            raise ValueError(f"{w}.prediction.beta_deg must be in (0, 180) degrees per step, got {v:g}")
+        kw["beta"] = math.radians(v)
+    if "d_critical_m" in sub:
+        kw["d_critical"] = _number(sub["d_critical_m"], f"{w}.prediction.d_critical_m", gt=0)
+    if "compare" in sub:
+        kw["compare"] = _choice(sub["compare"], ("plus", "both"), f"{w}.prediction.compare")
+    sub = _mapping(d.get("zeta", {}) or {}, f"{w}.zeta")
+    _check_keys(sub, _TL_ZETA_KEYS, f"{w}.zeta")
+    for key, name in (("eta1", "eta1"), ("eta2", "eta2"), ("d_safe_m", "zeta_d_safe")):
+        if key in sub:
+            kw[name] = _number(sub[key], f"{w}.zeta.{key}", ge=0)
+    if "d_close_m" in sub:
+        kw["d_close"] = _number(sub["d_close_m"], f"{w}.zeta.d_close_m", gt=0)
+    if "shape" in sub:
+        kw["zeta_shape"] = _choice(sub["shape"], ("printed", "psbmpc"), f"{w}.zeta.shape")
+    circles = d.get("static_obstacles", []) or []
+    if not isinstance(circles, (list, tuple)):
+        raise ValueError(f"{w}.static_obstacles must be a list of {{center_m: [north, east], radius_m: r}}, got "
+                         f"{circles!r}"[:300])
+    out = []
+    for i, c in enumerate(circles):
+        where = f"{w}.static_obstacles[{i}]"
+        c = _mapping(c, where)
+        _check_keys(c, ("center_m", "radius_m"), where, required=("center_m", "radius_m"))
+        ctr = c["center_m"]
+        if not isinstance(ctr, (list, tuple)) or len(ctr) != 2:
+            raise ValueError(f"{where}.center_m must be [north, east] in metres, got {ctr!r}"[:300])
+        out.append(((_number(ctr[0], f"{where}.center_m[0]"), _number(ctr[1], f"{where}.center_m[1]")),
+                    _number(c["radius_m"], f"{where}.radius_m", gt=0)))
+    kw["static_obstacles"] = tuple(out)
+    return TwoLevelSpec(**kw)
 
 
 _INFORMED_KEYS = ("route_exchange", "xtd_threshold_m", "d_init_m", "exchange_delay_s", "exchange_dropout", "classify",

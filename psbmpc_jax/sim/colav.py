@@ -18,6 +18,8 @@ one group, so their solves batch (one vmapped call per update in ``vmap`` mode):
 ``smooth_sbmpc``     Smooth-SBMPC of seed 000 (:class:`psbmpc_jax.smooth.planner.SmoothSBMPCPlanner`), all runs
                      of an update in one ``plan_batch`` call; per-step controls at ``mpc.smooth.dt_s`` (own-ship)
 ``sbmpc_init``       its initialisation stage alone (``init_only=True``): the paper's "original SB-MPC" (Sim 01)
+``two_level``        the two-level MPC of seed 001 (:class:`psbmpc_jax.two_level.planner.TwoLevelPlanner`,
+                     :mod:`psbmpc_jax.sim.colav_two_level`): absolute course/speed commands
 ===================  ==========================================================================================
 
 Every controller returns, per (run, ship) job of an update, the offsets (speed factor, course offset [rad])
@@ -70,6 +72,8 @@ class Decisions:
         walls: wall time of each job [s] (amortised over the jobs of one device call).
         device_calls, wall: device calls of this update and their wall time [s].
         kept, kept_job: the snapshot job's full evaluation (PSB-MPC only) or None.
+        commands: absolute commands ``(U, chi)`` ``[n, 2]`` [m/s, rad] applied as they are (not on top of LOS
+            guidance) until the next update, or None (``two_level``: χ_c = χ_d + χ_m, U_c = U_d·U_m).
     """
 
     jobs: list
@@ -83,6 +87,7 @@ class Decisions:
     info: dict | None = None
     kept: object = None
     kept_job: tuple | None = None
+    commands: np.ndarray | None = None
 
 
 def consistent_sequences(first: np.ndarray, controls: np.ndarray, atol: float = 1e-6) -> np.ndarray:

@@ -16,6 +16,7 @@ from typing import Callable
 from ..evaluate import DEFAULT_TERMS
 from ..methods import informed_terms, psbmpc2020_terms, sbmpc_terms
 from .colav import GridGroup, SmoothGroup
+from .colav_two_level import TwoLevelGroup
 
 
 @dataclass(frozen=True)
@@ -78,6 +79,8 @@ register(Method("smooth_sbmpc", "Smooth-SBMPC (seed 000): init stage + DOCP", la
                 key, cls: SmoothGroup(sc, cls), targets=False))
 register(Method("sbmpc_init", "Smooth-SBMPC's initialisation stage alone (seed 000 Sim 01)",
                 lambda sc, ships, mode, params, samples, key, cls: SmoothGroup(sc, cls), targets=False))
+register(Method("two_level", "two-level MPC (seed 001): path-following NMPC + SB-MPC with grounding cost",
+                lambda sc, ships, mode, params, samples, key, cls: TwoLevelGroup(sc), targets=False))
 
 
 def build_groups(scenario, mode: str, params, samples, methods, *, key=None, smooth_planner_cls=None) -> list:

@@ -284,6 +284,8 @@ class _ClosedLoop:
         self.full3 = vessel3dof.from_sim_state(self.states[:, self.motion3, 0]) if self.motion3 else None
         self.seg = np.zeros((R, n), dtype=np.int64)
         self.u_c, self.chi_off = np.ones((R, n)), np.zeros((R, n))
+        self.absolute = np.zeros((R, n), bool)          # ships commanded by absolute (U, chi) (two_level)
+        self.cmd_U, self.cmd_chi = np.zeros((R, n)), np.zeros((R, n))
         self.rngs = [np.random.default_rng([int(seed), r]) for r in range(R)]
         # route exchange (seed 002): the segment of the last plan each run received from each ship (-1: none),
         # the plans published but not yet due (delay), and the dropout draws (their own streams)
@@ -429,6 +431,10 @@ class _ClosedLoop:
                 if i == 0 and d.info is not None:
                     for name in INFO_NAMES:
                         self.colav_info[name][r, m] = d.info[name][n]
+            if d.commands is not None:
+                for n, (r, i) in enumerate(d.jobs):
+                    self.absolute[r, i] = True
+                    self.cmd_U[r, i], self.cmd_chi[r, i] = d.commands[n]
             ships = sorted({i for _, i in d.jobs})
             for i in ships:
                 rows = [n for n, (_, s) in enumerate(d.jobs) if s == i]     # one per run, runs in order
@@ -465,8 +471,8 @@ class _ClosedLoop:
         self._apply_sequences(k)
         chi_los, self.seg = los_course(self.states[:, :, k, :2], self.seg, self.routes_ext, self.n_wp,
                                        self.lookahead, self.R_a)
-        U_cmd = self.u_c * self.nominal(k)
-        chi_cmd = chi_los + self.chi_off
+        U_cmd = np.where(self.absolute, self.cmd_U, self.u_c * self.nominal(k))
+        chi_cmd = np.where(self.absolute, self.cmd_chi, chi_los + self.chi_off)
         self.states[:, :, k + 1] = kinematic_step(self.states[:, :, k], chi_cmd, U_cmd, self.T_chi, self.T_U,
                                                   self.sc.dt)
         if self.motion3:
@@ -498,7 +504,8 @@ class _ClosedLoop:
             scenario=self.sc, t=self.t, states=self.states, track_x=self.track_x, track_P=self.track_P,
             solve_t=self.t[self.solve_steps], offsets=self.offsets, best_costs=self.best_costs, calls=self.calls,
             snapshot=self.snapshot, metrics=[], solve_wall=self.solve_wall, method=self.colav.method,
-            colav_info=self.colav_info if self.colav.method in ("psbmpc_refine", "smooth_sbmpc", "sbmpc_init")
+            colav_info=self.colav_info
+            if self.colav.method in ("psbmpc_refine", "smooth_sbmpc", "sbmpc_init", "two_level")
             else None)
 
     def clip_exceeded(self) -> bool | None:
