@@ -129,7 +129,7 @@ def test_preset_is_optional_only_for_the_smooth_methods():
 
 BAD = [
     ("method", with_("mpc.method", "smooth"), r"mpc.method must be one of psbmpc, psbmpc_refine, smooth_sbmpc, "
-                                              r"sbmpc_init, sbmpc, psbmpc_2020, informed_sbmpc, got 'smooth'"),
+                                              r"sbmpc_init, sbmpc, psbmpc_2020, informed_sbmpc, two_level, got 'smooth'"),
     ("method_type", with_("mpc.method", 3), r"mpc.method must be one of .*got 3"),
     ("smooth_unknown", with_("mpc.smooth.T_init", 8), r"unknown key 'T_init' in mpc.smooth \(did you mean "
                                                       r"'T_init_s'\?\); allowed keys: T_init_s, T_mpc_s"),
@@ -199,7 +199,7 @@ def test_method_override(tmp_path):
         assert load_scenario(path, method=method).mpc.method == method
         assert scenario_from_dict(tiny(), method=method).mpc.method == method
     with pytest.raises(ValueError, match=r"method \(the override of mpc.method\) must be one of"):
-        scenario_from_dict(tiny(), method="two_level")
+        scenario_from_dict(tiny(), method="three_level")
     # the override is validated like the file: here the smooth step does not divide the update period
     d = tiny(smooth={"T_init_s": 9, "T_mpc_s": 3, "dt_s": 3})
     assert scenario_from_dict(d).mpc.method == "psbmpc"
@@ -502,8 +502,8 @@ def test_cli_method_override(tmp_path, monkeypatch, psbmpc_run, init_run):
 
 def test_cli_method_errors(tmp_path, capsys):
     with pytest.raises(SystemExit) as exc:
-        main(["run", "head_on", "--method", "two_level", "--out", str(tmp_path)])
-    assert exc.value.code == 2 and "invalid choice: 'two_level'" in capsys.readouterr().err
+        main(["run", "head_on", "--method", "three_level", "--out", str(tmp_path)])
+    assert exc.value.code == 2 and "invalid choice: 'three_level'" in capsys.readouterr().err
     path = tmp_path / "nopreset.yaml"
     path.write_text(yaml.safe_dump(with_("mpc.preset", None, tiny(method="smooth_sbmpc"))))
     with pytest.raises(SystemExit) as exc:

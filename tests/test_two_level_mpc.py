@@ -96,13 +96,14 @@ def test_straight_channel_reaches_the_waypoint_inside_the_corridor():
     plus the model mismatch of one step, here none) and reaches the waypoint."""
     legs = make_legs([[0.0, 0.0], [300.0, 0.0]], half_width=20.0)
     circles = make_circles([[150.0, 0.0]], [12.0])
+    compiled_before = pm._solve_jit._cache_size()
     traj, results = closed_loop(legs, circles, [0.0, 10.0, 0.3, 3.0], 160, np.array([300.0, 0.0]))
     assert np.hypot(*(traj[-1, :2] - [300.0, 0.0])) < 10.0
     assert np.max(np.abs(traj[:, 1])) <= 20.0 + 1e-3
     assert np.min(np.hypot(traj[:, 0] - 150.0, traj[:, 1])) >= 12.0 + SET.r_os - 1e-3
     assert all(int(r.status) in (0, 1) and float(r.violation) <= 1e-3 for r in results)
     # no recompilation: every solve after the first reused the compiled solver
-    assert pm._solve_jit._cache_size() == 1
+    assert pm._solve_jit._cache_size() - compiled_before <= 1
 
 
 def test_narrow_corridor_bound_is_active_and_held():

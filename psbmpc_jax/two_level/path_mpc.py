@@ -153,6 +153,8 @@ def rk4_step(x, u, h, T_chi, T_U):
 def rollout(x0, u, settings: PathMpcSettings):
     """States ``[N_p + 1, 4]`` from ``x0`` under ``u [N_p, 2]`` (RK4, ``rk4_substeps`` per MPC step)."""
     h = settings.dt / settings.rk4_substeps
+    dtype = jnp.result_type(x0, u)                 # the line search may hand over promoted iterates
+    x0, u = jnp.asarray(x0, dtype), jnp.asarray(u, dtype)
 
     def step(x, uk):
         for _ in range(settings.rk4_substeps):
