@@ -283,7 +283,7 @@ class TwoLevelSpec:
     d_close: float = 50.0
     zeta_d_safe: float = 50.0
     zeta_shape: str = "printed"
-    nominal: str = "plan"
+    nominal: str = "hold"
     plan_stride: int = 5
     static_obstacles: tuple = ()
     sbmpc_T: float | None = None

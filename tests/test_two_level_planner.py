@@ -41,7 +41,21 @@ def test_command_is_the_upper_level_plus_the_sbmpc_modification(planner):
     assert plan.chi_m == 0.0 and plan.U_m == 1.0                   # open channel, no target: no modification
     assert int(plan.path.status) in (0, 1) and float(plan.path.violation) <= 1e-3
     assert state.j == 0 and state.u_plan.shape == (15, 2)
-    assert plan.nominal_route[0].tolist() == [0.0, 0.0] and len(plan.nominal_route) >= 3
+    assert plan.nominal_route[0].tolist() == [0.0, 0.0] and len(plan.nominal_route) == 2      # "hold": straight on
+    chi = math.atan2(*(plan.nominal_route[1] - plan.nominal_route[0])[::-1])
+    assert chi == pytest.approx(plan.chi_d, abs=1e-9)
+
+
+def test_nominal_plan_follows_the_upper_levels_positions(planner):
+    """C-001-7 as the SPEC chose it (``nominal="plan"``): the SB-MPC's route runs through the planned positions."""
+    import dataclasses
+
+    p2 = TwoLevelPlanner([[0.0, 0.0], [300.0, 0.0]], BANKS, U_ref=2.0,
+                         settings=dataclasses.replace(SETTINGS, nominal="plan"), config=CONFIG)
+    plan, _ = p2.plan([0.0, 0.0, 0.3, 2.0], np.zeros((0, 4)))
+    route = plan.nominal_route
+    assert len(route) == 15 // 3 + 2
+    np.testing.assert_allclose(route[1:-1], np.asarray(plan.path.x)[::3][1:, :2], atol=1e-9)
 
 
 def test_head_on_target_first_manoeuvre_is_to_starboard(planner):

@@ -75,7 +75,7 @@ class TwoLevelSettings:
     zeta_d_safe: float = 50.0
     zeta_shape: str = "printed"
     sbmpc: SbmpcSettings = SbmpcSettings()
-    nominal: str = "plan"
+    nominal: str = "hold"
     plan_stride: int = 5
 
     def __post_init__(self):
