@@ -154,3 +154,25 @@ def test_closed_loop_applies_the_absolute_commands_and_keeps_clear():
     assert np.nanmax(r.colav_info["violation"]) <= 1e-3
     off = r.offsets[0, 0]                                          # the SB-MPC's (U_m, chi_m) per update
     assert np.any(off[:, 1] > 0) and not np.any(off[:, 1] < 0)     # starboard modifications only (head-on)
+
+
+def test_seed_001_scenarios_are_the_generators_output_and_load():
+    import pathlib
+    import subprocess
+    import sys
+
+    from psbmpc_jax.scenario import load_scenario
+
+    repo = pathlib.Path(__file__).resolve().parents[1]
+    gen = subprocess.run([sys.executable, str(repo / "scripts" / "make_mahipala2023.py"), "--check"],
+                         capture_output=True, text=True)
+    assert gen.returncode == 0, gen.stdout + gen.stderr
+    counts = {}
+    for name in ("1_reference", "2_head_on", "3_crossing", "4_head_on_crossing", "5_overtaking",
+                 "6_overtaking_crossing", "7_combined"):
+        sc = load_scenario(f"mahipala2023_{name}")
+        assert sc.mpc.method == "two_level" and sc.runs >= 10 and sc.polygons
+        assert len(sc.mpc.two_level.static_obstacles) == 2
+        counts[name] = len(sc.targets)
+    assert counts == {"1_reference": 0, "2_head_on": 1, "3_crossing": 1, "4_head_on_crossing": 2, "5_overtaking": 1,
+                      "6_overtaking_crossing": 2, "7_combined": 3}
