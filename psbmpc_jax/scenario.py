@@ -258,6 +258,7 @@ class TwoLevelSpec:
         beta, d_critical, compare: the targets' ground-avoiding prediction (eq. 2; β [rad per step]).
         eta1, eta2, d_close, zeta_d_safe, zeta_shape: ζ of eq. (15).
         nominal, plan_stride: the SB-MPC's nominal references (``plan`` / ``hold``).
+        sbmpc_every: the SB-MPC solves every this many updates (SPEC §2.4: MPC every 1 s, SB-MPC every 5 s).
         static_obstacles: circles ``((north, east), radius)`` [m].
         sbmpc_T, sbmpc_dt: the lower level's horizon and step [s] (None: ``mpc.config``'s T and dt).
     """
@@ -285,6 +286,7 @@ class TwoLevelSpec:
     zeta_shape: str = "printed"
     nominal: str = "hold"
     plan_stride: int = 5
+    sbmpc_every: int = 5
     static_obstacles: tuple = ()
     sbmpc_T: float | None = None
     sbmpc_dt: float | None = None
@@ -700,7 +702,8 @@ def _mpc(d, dt: float) -> MPCSpec:
 
 
 _TWO_LEVEL_KEYS = ("N_p", "dt_s", "Q_diag", "M_diag", "chi_span_deg", "U_max_mps", "r_os_m", "corridor", "r_accept_m",
-                   "prediction", "zeta", "nominal", "plan_stride", "static_obstacles", "sbmpc_T_s", "sbmpc_dt_s")
+                   "prediction", "zeta", "nominal", "plan_stride", "static_obstacles", "sbmpc_T_s", "sbmpc_dt_s",
+                   "sbmpc_every")
 _TL_CORRIDOR_KEYS = ("half_width_m", "sample_m", "radius_m", "margin_m", "circle_margin_m")
 _TL_PREDICTION_KEYS = ("beta_deg", "d_critical_m", "compare")
 _TL_ZETA_KEYS = ("eta1", "eta2", "d_close_m", "d_safe_m", "shape")
@@ -713,8 +716,9 @@ def _two_level_spec(d) -> TwoLevelSpec:
     kw: dict = {}
     if "N_p" in d:
         kw["N_p"] = integer(d["N_p"], f"{w}.N_p", ge=1, le=MAX_METHOD_STEPS)
-    if "plan_stride" in d:
-        kw["plan_stride"] = integer(d["plan_stride"], f"{w}.plan_stride", ge=1, le=MAX_METHOD_STEPS)
+    for key in ("plan_stride", "sbmpc_every"):
+        if key in d:
+            kw[key] = integer(d[key], f"{w}.{key}", ge=1, le=MAX_METHOD_STEPS)
     for key, name in (("dt_s", "dt"), ("U_max_mps", "U_max"), ("r_accept_m", "r_accept"), ("sbmpc_T_s", "sbmpc_T"),
                       ("sbmpc_dt_s", "sbmpc_dt")):
         if key in d:

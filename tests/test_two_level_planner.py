@@ -176,3 +176,21 @@ def test_seed_001_scenarios_are_the_generators_output_and_load():
         counts[name] = len(sc.targets)
     assert counts == {"1_reference": 0, "2_head_on": 1, "3_crossing": 1, "4_head_on_crossing": 2, "5_overtaking": 1,
                       "6_overtaking_crossing": 2, "7_combined": 3}
+
+
+def test_sbmpc_every_holds_the_modification_between_solves():
+    import dataclasses
+
+    p = TwoLevelPlanner([[0.0, 0.0], [300.0, 0.0]], BANKS, U_ref=2.0,
+                        settings=dataclasses.replace(SETTINGS, sbmpc_every=3), config=CONFIG)
+    own, tg = np.array([0.0, 0.0, 0.0, 2.0]), np.array([[60.0, -1.0, math.pi, 1.5]])
+    plans, state = [], None
+    for _ in range(4):
+        plan, state = p.plan(own, tg, state)
+        plans.append(plan)
+    assert [pl.sbmpc is not None for pl in plans] == [True, False, False, True]
+    for pl in plans[1:3]:
+        assert (pl.chi_m, pl.U_m) == (plans[0].chi_m, plans[0].U_m)
+        assert pl.chi_c == pytest.approx(math.remainder(pl.chi_d + pl.chi_m, 2 * math.pi), abs=1e-12)
+    with pytest.raises(ValueError, match="sbmpc_every"):
+        TwoLevelSettings(sbmpc_every=0)

@@ -33,7 +33,8 @@ def two_level_settings(scenario):
         corridor_radius=spec.corridor_radius, corridor_margin=spec.corridor_margin, circle_margin=spec.circle_margin,
         r_accept=spec.r_accept, beta=spec.beta, d_critical=spec.d_critical, prediction_compare=spec.compare,
         eta1=spec.eta1, eta2=spec.eta2, d_close=spec.d_close, zeta_d_safe=spec.zeta_d_safe,
-        zeta_shape=spec.zeta_shape, sbmpc=scenario.mpc.sbmpc, nominal=spec.nominal, plan_stride=spec.plan_stride)
+        zeta_shape=spec.zeta_shape, sbmpc=scenario.mpc.sbmpc, nominal=spec.nominal, plan_stride=spec.plan_stride,
+        sbmpc_every=spec.sbmpc_every)
     config: PlannerConfig = scenario.mpc.config
     if spec.sbmpc_T is not None:
         config = config.replace(T=spec.sbmpc_T, dt=spec.sbmpc_dt)
@@ -65,10 +66,11 @@ class TwoLevelGroup:
         targets = tracked_targets(loop.track_x[:, :, k])                        # [R, I, 4]
         first, commands, walls = np.zeros((R, 2)), np.zeros((R, 2)), np.zeros(R)
         info = {name: np.full(R, np.nan) for name in INFO_NAMES}
-        t_all = time.perf_counter()
+        t_all, calls = time.perf_counter(), 0
         for r in range(R):
             t0 = time.perf_counter()
             plan, self.states[r] = self.planner.plan(states[r], targets[r], self.states.get(r))
+            calls += 1 if plan.sbmpc is None else 2
             walls[r] = time.perf_counter() - t0
             first[r] = (plan.U_m, plan.chi_m)
             commands[r] = (plan.U_c, plan.chi_c)
@@ -78,7 +80,7 @@ class TwoLevelGroup:
             info["iterations"][r] = float(plan.path.inner)
         wall = time.perf_counter() - t_all
         return Decisions(jobs=[(r, 0) for r in range(R)], first=first, costs=np.full((R, len(COST_NAMES)), np.nan),
-                         walls=walls, device_calls=2 * R, wall=wall, info=info, commands=commands)
+                         walls=walls, device_calls=calls, wall=wall, info=info, commands=commands)
 
 
 __all__ = ["TwoLevelGroup", "two_level_settings"]

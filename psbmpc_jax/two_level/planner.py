@@ -57,6 +57,8 @@ class TwoLevelSettings:
         sbmpc: the SB-MPC's collision/COLREGS/Γ tuning (:class:`~psbmpc_jax.methods.SbmpcSettings`).
         nominal: the SB-MPC's nominal references: ``"plan"`` (C-001-7) or ``"hold"`` (the flag).
         plan_stride: every how many MPC steps a planned position becomes a nominal waypoint.
+        sbmpc_every: the SB-MPC solves at every ``sbmpc_every``-th update (the first included) and its
+            (χ_m, U_m) is held in between (SPEC §2.4 proposes the MPC every 1 s, the SB-MPC every 5 s).
     """
 
     path: PathMpcSettings = PathMpcSettings()
@@ -77,6 +79,7 @@ class TwoLevelSettings:
     sbmpc: SbmpcSettings = SbmpcSettings()
     nominal: str = "hold"
     plan_stride: int = 5
+    sbmpc_every: int = 1
 
     def __post_init__(self):
         if not isinstance(self.path, PathMpcSettings):
@@ -101,8 +104,10 @@ class TwoLevelSettings:
             raise ValueError(f"TwoLevelSettings.zeta_shape must be one of {ZETA_SHAPES}, got {self.zeta_shape!r}")
         if self.nominal not in NOMINALS:
             raise ValueError(f"TwoLevelSettings.nominal must be one of {NOMINALS}, got {self.nominal!r}")
-        if isinstance(self.plan_stride, bool) or not isinstance(self.plan_stride, int) or self.plan_stride < 1:
-            raise ValueError(f"TwoLevelSettings.plan_stride must be an integer >= 1, got {self.plan_stride!r}")
+        for name in ("plan_stride", "sbmpc_every"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+                raise ValueError(f"TwoLevelSettings.{name} must be an integer >= 1, got {v!r}")
 
     def terms(self) -> tuple:
         """The lower level's cost terms: the SB-MPC hazard with ζ joined inside the max, and Γ."""
@@ -116,12 +121,14 @@ class TwoLevelSettings:
 
 class TwoLevelState(NamedTuple):
     """Memory between updates: active leg ``j``, the applied command ``u_prev = (χ, U)``, the last upper-level
-    plan ``u_plan [N_p, 2]`` (warm start; None at first) and the SB-MPC's planner state (its last offsets)."""
+    plan ``u_plan [N_p, 2]`` (warm start; None at first), the SB-MPC's planner state (its last offsets) and the
+    updates since its last solve."""
 
     j: int
     u_prev: np.ndarray
     u_plan: np.ndarray | None
     sbmpc: PlannerState
+    since: int = 0
 
 
 class TwoLevelPlan(NamedTuple):
@@ -207,7 +214,7 @@ class TwoLevelPlanner:
 
     def initial_state(self, own_state) -> TwoLevelState:
         s = np.asarray(own_state, dtype=float)
-        return TwoLevelState(0, np.array([s[2], s[3]]), None, PlannerState())
+        return TwoLevelState(0, np.array([s[2], s[3]]), None, PlannerState(), 0)
 
     def nominal_route(self, own_state, path) -> np.ndarray:
         """The SB-MPC's nominal route: LOS through the upper level's planned positions (every ``plan_stride``-th)
@@ -243,6 +250,12 @@ class TwoLevelPlanner:
                            jax.tree.map(lambda a: jnp.asarray(a, dtype), self.circle_arrays))
         path = jax.device_get(solve_path_mpc(data, s.path, previous=state.u_plan))
         chi_d, U_d = float(path.u[0, 0]), float(path.u[0, 1])
+        fresh = state.u_plan is None or state.since + 1 >= s.sbmpc_every
+        if not fresh:                                  # hold the SB-MPC's last modification
+            U_m, chi_m = (float(v) for v in np.asarray(state.sbmpc.last_offsets, dtype=float))
+            plan = TwoLevelPlan(float(wrap_angle_host(chi_d + chi_m)), U_d * U_m, chi_d, U_d, chi_m, U_m, path, None,
+                                np.zeros((0, self.config.n_steps + 1, 2)), j, np.zeros((0, 2)))
+            return plan, TwoLevelState(j, np.array([chi_d, U_d]), np.asarray(path.u), state.sbmpc, state.since + 1)
         n_steps = self.config.n_steps
         if len(tg):
             pred = jax.device_get(predict_targets(tg, self.chart, n_steps, self.config.dt, beta=s.beta,
@@ -260,7 +273,7 @@ class TwoLevelPlanner:
         chi_c = float(wrap_angle_host(chi_d + chi_m))
         U_c = U_d * U_m
         plan = TwoLevelPlan(chi_c, U_c, chi_d, U_d, chi_m, U_m, path, res, paths, j, route)
-        return plan, TwoLevelState(j, np.array([chi_d, U_d]), np.asarray(path.u), sb_state)
+        return plan, TwoLevelState(j, np.array([chi_d, U_d]), np.asarray(path.u), sb_state, 0)
 
     def _obstacle(self, target, path) -> Obstacle:
         """A target for the SB-MPC: its predicted ground-avoiding path as its route (every ``plan_stride``-th
