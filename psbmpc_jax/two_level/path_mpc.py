@@ -33,8 +33,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..nlp import STATUS_NAMES, SolverSettings, max_violation, solve_docp
-from ..numerics import safe_sqrt
 from ..numerics import wrap_angle as wrap
+from .path_frame import to_leg_frame
+from .static_obstacles import StaticCircles, circle_residuals
 
 
 @dataclasses.dataclass(frozen=True)
@@ -167,10 +168,9 @@ def rollout(x0, u, settings: PathMpcSettings):
 
 def path_coordinates(p, wp, psi):
     """(x_p, y_p) of positions ``p [..., 2]`` in the frame of a leg starting at ``wp`` with angle ``psi``
-    (eq. 3 with ψ = the NED leg angle: y_p > 0 to starboard)."""
-    d = p - wp
-    c, s = jnp.cos(psi), jnp.sin(psi)
-    return c * d[..., 0] + s * d[..., 1], -s * d[..., 0] + c * d[..., 1]
+    (eq. 3, :func:`~psbmpc_jax.two_level.path_frame.to_leg_frame`: y_p > 0 to starboard)."""
+    q = to_leg_frame(p, wp, psi)
+    return q[..., 0], q[..., 1]
 
 
 def _leg(legs: Legs, j):
@@ -192,12 +192,6 @@ def corridor_residuals(p, legs: Legs, j):
     r_next, _ = res(_leg(legs, jn))
     beyond = (xp_here > legs.length[j]) & (jn != j)
     return jnp.where(beyond[:, None], r_next, r_here)
-
-
-def circle_residuals(p, circles: Circles, r_os):
-    """Eqs. (10)/(12) residuals ``[K, C]``: r_i + r_os − ‖p_k − c_i‖ (≤ 0 feasible; gradient-safe at 0)."""
-    d = p[:, None, :] - circles.centre[None]
-    return circles.radius[None] + r_os - safe_sqrt(jnp.sum(d * d, axis=-1))
 
 
 def _reference(data: PathMpcData):
@@ -223,7 +217,8 @@ def path_mpc_ineq(u, data: PathMpcData, settings: PathMpcSettings):
     p = rollout(data.x0, u, settings)[1:, :2]
     parts = [corridor_residuals(p, data.legs, data.j).ravel()]
     if data.circles.radius.shape[0]:
-        parts.append(circle_residuals(p, data.circles, settings.r_os).ravel())
+        parts.append(circle_residuals(p, StaticCircles(data.circles.centre, data.circles.radius),
+                                      settings.r_os).ravel())
     return jnp.concatenate(parts)
 
 
@@ -374,6 +369,5 @@ def status_name(result: PathMpcResult) -> str:
 
 
 __all__ = ["PathMpcSettings", "PathMpcData", "PathMpcResult", "Legs", "Circles", "DEFAULT_SOLVER", "rollout",
-           "rk4_step", "path_coordinates", "path_mpc_cost", "path_mpc_ineq", "corridor_residuals",
-           "circle_residuals", "command_box", "warm_start", "solve_path_mpc", "check_data", "make_legs",
-           "make_circles", "status_name", "unwrap_near"]
+           "rk4_step", "path_coordinates", "path_mpc_cost", "path_mpc_ineq", "corridor_residuals", "command_box",
+           "warm_start", "solve_path_mpc", "check_data", "make_legs", "make_circles", "status_name", "unwrap_near"]
