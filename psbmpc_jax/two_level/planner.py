@@ -135,7 +135,8 @@ class TwoLevelPlan(NamedTuple):
     """One update: the command ``(chi_c, U_c)``, the upper level's ``(chi_d, U_d)`` and plan
     (:class:`~psbmpc_jax.two_level.path_mpc.PathMpcResult`, NumPy), the SB-MPC modification ``(chi_m, U_m)``
     and its :class:`~psbmpc_jax.packing.PlanResult`, the targets' predicted positions ``[I, N+1, 2]``, the
-    active leg and the nominal route the SB-MPC followed."""
+    active leg and the nominal route the SB-MPC followed.  At an update that holds the last modification
+    (``sbmpc_every`` > 1) ``sbmpc`` is None and ``target_paths`` / ``nominal_route`` are empty."""
 
     chi_c: float
     U_c: float
