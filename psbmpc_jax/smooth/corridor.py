@@ -47,7 +47,7 @@ from shapely.ops import unary_union
 
 from ..packing import Capacities, ChartArrays, pack_world
 from .land_hit import (DEFAULT_BLOCK, as_chart, box_near, check_points, check_radius, concrete_float,
-                       crossings, cull_tolerance, edge_blocks, may_cross)
+                       crossings, cull_tolerance, edge_blocks, may_cross, ray_edge_t)
 
 #: Default ``quad_segs`` of the shapely buffer (segments per quarter circle of the rounded corners).
 DEFAULT_QUAD_SEGS = 16
@@ -265,9 +265,9 @@ def corridor_kernel(positions, chart: ChartArrays, delta_d, heading=0.0, min_seg
     (static): edge slots visited at once.  Blocks whose box misses the rays' box skip the ray test, blocks
     that no +x ray from a P_j can cross skip the parity (``lax.cond``; exact, only work is saved).
 
-    For a ray p + t d (|d| = 1) and an edge a + s (b − a): with w = a − p and × the 2-d cross product,
-    t = (w × e)/(d × e), s = (w × d)/(d × e); a hit needs t >= 0 and 0 <= s <= 1.  A parallel edge (d × e = 0)
-    hits only when collinear (w × d = 0), at max(min(w·d, (w + e)·d), 0) when max(…) >= 0."""
+    The ray/edge test is :func:`psbmpc_jax.smooth.land_hit.ray_edge_t` (from the end points' sides of the ray's
+    line, so a ray through a vertex cannot slip between its two edges; a collinear edge hits at
+    max(min(t_a, t_b), 0) when max(…) >= 0)."""
     P = lax.stop_gradient(jnp.asarray(positions))
     dtype = P.dtype
     t = _tangents(P, jnp.asarray(heading, dtype), min_segment)
@@ -287,18 +287,7 @@ def corridor_kernel(positions, chart: ChartArrays, delta_d, heading=0.0, min_seg
     tol = cull_tolerance(rlo, rhi)
 
     def ray_hits(e):
-        ax, ay, ex, ey = e[..., 0], e[..., 1], e[..., 2], e[..., 3]
-        wx, wy = ax - ox, ay - oy
-        den = dx * ey - dy * ex
-        t_num = wx * ey - wy * ex
-        s_num = wx * dy - wy * dx
-        par = den == 0
-        safe = jnp.where(par, 1.0, den)
-        tt, ss = t_num / safe, s_num / safe
-        hit = ~par & (tt >= 0) & (ss >= 0) & (ss <= 1)
-        ta, tb = wx * dx + wy * dy, (wx + ex) * dx + (wy + ey) * dy
-        col = par & (s_num == 0) & (jnp.maximum(ta, tb) >= 0)
-        return jnp.where(hit, tt, jnp.where(col, jnp.maximum(jnp.minimum(ta, tb), 0.0), inf))
+        return ray_edge_t(ox, oy, dx, dy, e)
 
     def per_block(carry, blk):
         tmin, parity = carry

@@ -153,6 +153,32 @@ def crossings(px, py, e):
     return ((ay > py) != (by > py)) & (px < ax + (py - ay) * slope)
 
 
+def ray_edge_t(ox, oy, dx, dy, e):
+    """Hit parameter t >= 0 of the rays o + t d (``|d| = 1``; broadcast against the edges ``e [..., 8]``, columns
+    of :data:`psbmpc_jax.geometry.EDGE_COLUMNS`), +inf when a ray misses the closed edge a-b.
+
+    Robust at vertices: with the orientations σ(v) = d × (v − o) of the end points (× the 2-d cross product;
+    computed from the vertex alone, so a vertex shared by two edges gets the same σ in both), the ray's line
+    meets the edge iff σ(a) and σ(b) do not have strictly equal signs, at s = σ(a)/(σ(a) − σ(b)) ∈ [0, 1] along
+    it and t = d·(a − o) + s d·(b − a) along the ray; a hit needs t >= 0.  A ray through a vertex where the
+    boundary crosses its line therefore never slips between the two edges, whatever the rounding (a plain
+    Cramer solve for s per edge can put s just below 0 on one edge and just above 1 on the other).
+    Collinear edge (σ(a) = σ(b) = 0): the hit is at max(min(t_a, t_b), 0) when max(t_a, t_b) >= 0."""
+    ax, ay, bx, by = e[..., 0], e[..., 1], e[..., 5], e[..., 6]
+    sa = dx * (ay - oy) - dy * (ax - ox)
+    sb = dx * (by - oy) - dy * (bx - ox)
+    ta = dx * (ax - ox) + dy * (ay - oy)
+    tb = dx * (bx - ox) + dy * (by - oy)
+    col = (sa == 0) & (sb == 0)
+    meets = ((sa <= 0) & (sb >= 0)) | ((sa >= 0) & (sb <= 0))
+    den = sa - sb                                    # |den| = |σ(a)| + |σ(b)| > 0 where it meets, not collinear
+    s = jnp.clip(sa / jnp.where(den == 0, 1.0, den), 0.0, 1.0)
+    t = ta + s * (tb - ta)
+    inf = jnp.asarray(jnp.inf, t.dtype)
+    t_col = jnp.where(jnp.maximum(ta, tb) >= 0, jnp.maximum(jnp.minimum(ta, tb), 0.0), inf)
+    return jnp.where(col, t_col, jnp.where(meets & (t >= 0), t, inf))
+
+
 def point_edge_d2(px, py, e):
     """Squared distance from the points to each edge (broadcast)."""
     ax, ay, abx, aby, inv_l2 = e[..., 0], e[..., 1], e[..., 2], e[..., 3], e[..., 4]
@@ -283,4 +309,5 @@ def first_land_hit(traj_xy, chart, r_dom, *, block: int = DEFAULT_BLOCK) -> jax.
     return _hits(traj_xy, chart, r_dom, block)[1]
 
 
-__all__ = ["first_land_hit", "land_collision_flags", "land_clearance", "edge_blocks", "EdgeBlocks", "DEFAULT_BLOCK"]
+__all__ = ["first_land_hit", "land_collision_flags", "land_clearance", "edge_blocks", "EdgeBlocks", "DEFAULT_BLOCK",
+           "ray_edge_t"]

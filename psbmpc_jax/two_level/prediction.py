@@ -16,7 +16,7 @@ A target with state (x, y, χ, U) (NED: x north, y east [m], course χ [rad] clo
 * **d_LOSg** is the distance from p_k to the first land point on its course ray: the smallest t >= 0 with
   p_k + t (cos χ, sin χ) on a land edge (edges are closed: a ray through a vertex or grazing one hits), 0 when
   p_k is inside land, +inf when nothing is hit within ``max_range`` (treated as clear).  The ray/edge test
-  (:func:`ray_edge_t`) is robust at vertices: a ray through a vertex cannot slip between its two edges.
+  (:func:`psbmpc_jax.smooth.land_hit.ray_edge_t`) is robust at vertices: a ray through a vertex cannot slip between its two edges.
   Rays are capped at ``max_range`` (default 2 d_critical, SPEC proposal).
 * **β** is a per-step angle [rad] (β > 0 = starboard turn in NED): the proposed 5° per step holds for dt = 1 s
   as given; it is *not* rescaled with ``dt`` (a turn rate of β / dt).  Ties (both rays equally clear, or both
@@ -52,7 +52,7 @@ from jax import lax
 
 from ..packing import ChartArrays
 from ..smooth.land_hit import (DEFAULT_BLOCK, as_chart, box_near, concrete_float, crossings, cull_tolerance,
-                               edge_blocks, may_cross)
+                               edge_blocks, may_cross, ray_edge_t)
 
 #: Proposed defaults (SPEC_SEEDS §2.2): β = 5° per step at dt = 1 s, d_critical = 50 m, ray range 2 d_critical.
 DEFAULT_BETA = math.radians(5.0)
@@ -75,32 +75,6 @@ class TargetPrediction(NamedTuple):
 
 
 # --------------------------------------------------------------------------------------------- kernels
-def ray_edge_t(ox, oy, dx, dy, e):
-    """Hit parameter t >= 0 of the rays o + t d (``|d| = 1``; broadcast against the edges ``e [..., 8]``, columns
-    of :data:`psbmpc_jax.geometry.EDGE_COLUMNS`), +inf when a ray misses the closed edge a-b.
-
-    Robust at vertices: with the orientations σ(v) = d × (v − o) of the end points (× the 2-d cross product;
-    computed from the vertex alone, so a vertex shared by two edges gets the same σ in both), the ray's line
-    meets the edge iff σ(a) and σ(b) do not have strictly equal signs, at s = σ(a)/(σ(a) − σ(b)) ∈ [0, 1] along
-    it and t = d·(a − o) + s d·(b − a) along the ray; a hit needs t >= 0.  A ray through a vertex where the
-    boundary crosses its line therefore never slips between the two edges, whatever the rounding (a plain
-    Cramer solve for s per edge can put s just below 0 on one edge and just above 1 on the other).
-    Collinear edge (σ(a) = σ(b) = 0): the hit is at max(min(t_a, t_b), 0) when max(t_a, t_b) >= 0."""
-    ax, ay, bx, by = e[..., 0], e[..., 1], e[..., 5], e[..., 6]
-    sa = dx * (ay - oy) - dy * (ax - ox)
-    sb = dx * (by - oy) - dy * (bx - ox)
-    ta = dx * (ax - ox) + dy * (ay - oy)
-    tb = dx * (bx - ox) + dy * (by - oy)
-    col = (sa == 0) & (sb == 0)
-    meets = ((sa <= 0) & (sb >= 0)) | ((sa >= 0) & (sb <= 0))
-    den = sa - sb                                    # |den| = |σ(a)| + |σ(b)| > 0 where it meets, not collinear
-    s = jnp.clip(sa / jnp.where(den == 0, 1.0, den), 0.0, 1.0)
-    t = ta + s * (tb - ta)
-    inf = jnp.asarray(jnp.inf, t.dtype)
-    t_col = jnp.where(jnp.maximum(ta, tb) >= 0, jnp.maximum(jnp.minimum(ta, tb), 0.0), inf)
-    return jnp.where(col, t_col, jnp.where(meets & (t >= 0), t, inf))
-
-
 def ray_land_distance(origins, directions, chart: ChartArrays, max_range, block: int = DEFAULT_BLOCK) -> jax.Array:
     """d_LOSg of rays ``origins [R, 2]`` (north, east) [m] along the courses ``directions [R]`` [rad]: per ray the
     smallest t >= 0 with origin + t (cos χ, sin χ) on a closed land edge, +inf when there is none within
@@ -281,5 +255,5 @@ def predict_targets(state, chart, n_steps: int, dt=DEFAULT_DT, *, beta=DEFAULT_B
     return out
 
 
-__all__ = ["TargetPrediction", "ray_edge_t", "ray_land_distance", "ground_avoiding_cv", "predict_targets",
+__all__ = ["TargetPrediction", "ray_land_distance", "ground_avoiding_cv", "predict_targets",
            "DEFAULT_BETA", "DEFAULT_D_CRITICAL", "DEFAULT_DT", "COMPARE_MODES"]
