@@ -164,8 +164,8 @@ def test_per_ship_methods_parse():
     (dict(mpc__sbmpc={"n_mc": 0}), r"mpc.sbmpc.n_mc must be an integer >= 1"),
     (dict(mpc__sbmpc={"n_mc": 2_000_000}), r"mpc.sbmpc.n_mc must be an integer <= 1000000"),
     (dict(mpc__sbmpc={"grounding": "no"}), r"mpc.sbmpc.grounding must be true or false"),
-    (dict(mpc__method="sbmpc2020"), r"mpc.method must be one of psbmpc, .*psbmpc_2020, informed_sbmpc, got "
-                                    r"'sbmpc2020'"),
+    (dict(mpc__method="sbmpc2020"), r"mpc.method must be one of psbmpc, .*psbmpc_2020, informed_sbmpc, two_level, "
+                                    r"got 'sbmpc2020'"),
 ])
 def test_bad_methods_and_settings_name_the_ship_or_key(change, match):
     with pytest.raises(ValueError, match=match):
@@ -175,7 +175,7 @@ def test_bad_methods_and_settings_name_the_ship_or_key(change, match):
 # ============================================================================= registry and closed loop
 def test_registry_covers_every_method_and_groups_by_method():
     assert set(REGISTRY) == set(METHODS)
-    assert {n for n, m in REGISTRY.items() if not m.targets} == {"smooth_sbmpc", "sbmpc_init"}
+    assert {n for n, m in REGISTRY.items() if not m.targets} == {"smooth_sbmpc", "sbmpc_init", "two_level"}
     sc = scenario_from_dict(mixed())
     c = colav.build(sc, "loop", None, None)
     by = {g.method: g.ships for g in c.groups}

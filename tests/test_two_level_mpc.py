@@ -62,8 +62,9 @@ def test_rollout_and_cost_equal_numpy_and_gradients_equal_central_differences():
         d = data(x0, u_prev, legs, circles)
         want = np_cost(x0, u, u_prev, [200.0, 50.0], math.atan2(50, 200), 3.0, s)
         assert float(pm.path_mpc_cost(jnp.asarray(u), d, s)) == pytest.approx(want, rel=1e-12)
-        for fn in (lambda v: pm.path_mpc_cost(v, d, s), lambda v: jnp.sum(jnp.sin(pm.path_mpc_ineq(v, d, s)))):
-            g = np.asarray(jax.grad(fn)(jnp.asarray(u)))
+        for fn in (jax.jit(lambda v: pm.path_mpc_cost(v, d, s)),
+                   jax.jit(lambda v: jnp.sum(jnp.sin(pm.path_mpc_ineq(v, d, s))))):
+            g = np.asarray(jax.jit(jax.grad(fn))(jnp.asarray(u)))
             fd = np.zeros_like(u)
             for idx in np.ndindex(*u.shape):
                 e = np.zeros_like(u)
