@@ -66,6 +66,25 @@ def _random_cov(rng: np.random.Generator) -> np.ndarray:
     return A @ A.T + np.diag([0.5, 0.5, 0.01, 0.01])
 
 
+def star(rng: np.random.Generator, n: int, cx: float, cy: float, r_min: float, r_max: float) -> np.ndarray:
+    """A star-shaped simple ring ``[n, 2]`` about (cx, cy): evenly spaced angles with jitter (every angular gap
+    < pi, so the ring is star-shaped about its centre and simple), random radii in [r_min, r_max]."""
+    ang = (np.arange(n) + rng.uniform(-0.3, 0.3, n)) * (2 * np.pi / n)
+    rad = rng.uniform(r_min, r_max, n)
+    return np.stack([cx + rad * np.cos(ang), cy + rad * np.sin(ang)], axis=-1)
+
+
+def central_difference(f, x, h: float = 1e-6) -> np.ndarray:
+    """Central-difference gradient of the scalar function ``f`` at ``x`` (any shape), float64."""
+    x = np.asarray(x, float)
+    g = np.zeros_like(x)
+    for idx in np.ndindex(x.shape):
+        e = np.zeros_like(x)
+        e[idx] = h
+        g[idx] = (float(f(x + e)) - float(f(x - e))) / (2 * h)
+    return g
+
+
 def star_polygon(rng: np.random.Generator, centre, r_min: float, r_max: float, n: int) -> np.ndarray:
     """A random star-shaped ring (sorted angles, random radii) around ``centre``."""
     ang = np.sort(rng.uniform(0.0, 2 * math.pi, n))

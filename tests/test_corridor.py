@@ -19,16 +19,11 @@ from psbmpc_jax.packing import Capacities
 from psbmpc_jax.smooth import (Corridor, boundary_points, buffer_land, buffered_chart,
                                cross_track_corridor, cross_track_corridor_shapely, cross_track_residuals)
 
+from conftest import star
+
 #: One capacity for every random chart: a single compilation of the kernel for the random tests.
 CAPS = Capacities(polygons=8, vertices=1024)
 R_DOM = 4.0
-
-
-def star(rng, n, cx, cy, r_min, r_max):
-    """Star-shaped simple ring about (cx, cy) (angular gaps < pi)."""
-    ang = (np.arange(n) + rng.uniform(-0.3, 0.3, n)) * (2 * np.pi / n)
-    rad = rng.uniform(r_min, r_max, n)
-    return np.stack([cx + rad * np.cos(ang), cy + rad * np.sin(ang)], axis=-1)
 
 
 def random_land(rng, k=4):

@@ -15,6 +15,8 @@ from psbmpc_jax import reference_smooth as rs
 from psbmpc_jax.costs import colregs_fuzzy as cf
 from psbmpc_jax.costs.sbmpc import colregs_boolean
 
+from conftest import central_difference
+
 # (ΔCOG [deg], RB [deg], d [m]) and μ with the default-false completion / the literal rule base (SPEC §1.4:
 # ε = 1e-6, N_y = 201, d_cl = 40 m, e_cl = 5 m).
 SPEC_CASES = np.array([(90.0, 45.0, 20.0), (178.0, 10.0, 20.0), (90.0, -45.0, 20.0), (90.0, 45.0, 200.0),
@@ -187,14 +189,6 @@ def test_coverage_hole_of_the_literal_rule_base():
 
 
 # ============================================================================ gradients
-def central_difference(f, x, h=1e-6):
-    x = np.asarray(x, float)
-    g = np.zeros_like(x)
-    for i in range(x.size):
-        e = np.zeros_like(x)
-        e[i] = h
-        g[i] = (f(x + e) - f(x - e)) / (2 * h)
-    return g
 
 
 @pytest.mark.parametrize("completion", cf.COMPLETIONS)

@@ -22,13 +22,7 @@ from psbmpc_jax.costs.grounding import edge_table, polygon_distance
 from psbmpc_jax.packing import pack
 from psbmpc_jax.situation import ring_vertices
 
-
-def star(rng, n, cx, cy, r_min, r_max):
-    # evenly spaced angles with jitter: every angular gap < pi, so the ring is star-shaped about its
-    # centre and simple
-    ang = (np.arange(n) + rng.uniform(-0.3, 0.3, n)) * (2 * np.pi / n)
-    rad = rng.uniform(r_min, r_max, n)
-    return np.stack([cx + rad * np.cos(ang), cy + rad * np.sin(ang)], axis=-1)
+from conftest import star
 
 
 def device_distance(rings, pts):

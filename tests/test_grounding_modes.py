@@ -13,11 +13,15 @@ from shapely.geometry import Polygon
 from psbmpc_jax import Obstacle, OwnShip, Params, Planner, PlannerConfig, Situation, paper_behaviours
 from psbmpc_jax.distance_grid import build_distance_grid, interpolate, relative_error_bound
 
+from conftest import star
 
-def star(rng, n, cx, cy, r_min, r_max):
-    ang = (np.arange(n) + rng.uniform(-0.3, 0.3, n)) * (2 * np.pi / n)
-    rad = rng.uniform(r_min, r_max, n)
-    return np.stack([cx + rad * np.cos(ang), cy + rad * np.sin(ang)], axis=-1)
+
+def channel_situation(seed):
+    """The channel with a random star-shaped island and one obstacle ahead (3 scenarios)."""
+    rng = np.random.default_rng(seed)
+    own = OwnShip([0.0, 0.0, 0.0, 2.0], [[0.0, 0.0], [500.0, 0.0]], 2.0)
+    polys = channel() + (star(rng, 12, rng.uniform(50, 250), rng.uniform(-25, 25), 2.0, 8.0),)
+    return Situation(own, (Obstacle([200.0, 5.0, -2.0, 0.0], np.diag([4.0, 4.0, 0.1, 0.1]), n_ps=3),), polys)
 
 
 def channel():
@@ -48,10 +52,7 @@ def test_grid_distance_within_lipschitz_bound(spacing):
 
 @pytest.mark.parametrize("seed", [0, 1])
 def test_grid_mode_cost_within_documented_bound(seed):
-    rng = np.random.default_rng(seed)
-    own = OwnShip([0.0, 0.0, 0.0, 2.0], [[0.0, 0.0], [500.0, 0.0]], 2.0)
-    polys = channel() + (star(rng, 12, rng.uniform(50, 250), rng.uniform(-25, 25), 2.0, 8.0),)
-    sit = Situation(own, (Obstacle([200.0, 5.0, -2.0, 0.0], np.diag([4.0, 4.0, 0.1, 0.1]), n_ps=3),), polys)
+    sit = channel_situation(seed)
     beh = paper_behaviours(1)
     base = dict(T=60.0, dt=0.5, dtype="float64")
     exact, _ = Planner(PlannerConfig(**base), behaviours=beh).plan(sit)
@@ -93,10 +94,7 @@ def test_driving_into_the_bank_costs_more_than_staying_in_the_channel(mode):
 def test_dense_grounding_search_gives_the_culled_plan(seed):
     """PlannerConfig.grounding_search="dense" (the GPU layout) changes how the worst time step is found, not
     the costs: every behaviour's costs and the chosen behaviour equal the culled search's."""
-    rng = np.random.default_rng(seed)
-    own = OwnShip([0.0, 0.0, 0.0, 2.0], [[0.0, 0.0], [500.0, 0.0]], 2.0)
-    polys = channel() + (star(rng, 12, rng.uniform(50, 250), rng.uniform(-25, 25), 2.0, 8.0),)
-    sit = Situation(own, (Obstacle([200.0, 5.0, -2.0, 0.0], np.diag([4.0, 4.0, 0.1, 0.1]), n_ps=3),), polys)
+    sit = channel_situation(seed)
     beh = paper_behaviours(1)
     base = dict(T=60.0, dt=0.5, dtype="float64")
     culled, _ = Planner(PlannerConfig(**base), behaviours=beh).plan(sit)

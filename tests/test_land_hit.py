@@ -20,6 +20,8 @@ from psbmpc_jax import PlannerConfig
 from psbmpc_jax.packing import Capacities, pack_world
 from psbmpc_jax.smooth import first_land_hit, land_collision_flags
 
+from conftest import star
+
 CFG = PlannerConfig(dtype="float64")
 CAPS = Capacities(polygons=8, vertices=64)
 R_DOM = 4.0
@@ -28,12 +30,6 @@ B, N = 6, 30
 
 def chart_of(polygons, caps=CAPS):
     return pack_world(polygons, CFG, caps).polygons
-
-
-def star(rng, n, cx, cy, r_min, r_max):
-    ang = (np.arange(n) + rng.uniform(-0.3, 0.3, n)) * (2 * np.pi / n)
-    rad = rng.uniform(r_min, r_max, n)
-    return np.stack([cx + rad * np.cos(ang), cy + rad * np.sin(ang)], axis=-1)
 
 
 def random_land(rng, k):

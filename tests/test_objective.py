@@ -20,7 +20,7 @@ from psbmpc_jax.objective import objective, value_and_grad
 from psbmpc_jax.obstacles import ou_covariance
 from psbmpc_jax.solve import solve
 
-from conftest import SMALL_BEHAVIOURS, random_situation
+from conftest import SMALL_BEHAVIOURS, central_difference, random_situation
 
 T = 30.0
 BASE = dict(T=T, dt=0.5, n_samples=128, dtype="float64")
@@ -62,14 +62,6 @@ def test_grid_search_equals_vmap_objective(estimator, grounding_mode):
 
 
 # ============================================================================ finite differences
-def central_difference(f, x, h=1e-6):
-    x = np.asarray(x, float)
-    g = np.zeros_like(x)
-    for idx in np.ndindex(x.shape):
-        e = np.zeros_like(x)
-        e[idx] = h
-        g[idx] = (f(x + e) - f(x - e)) / (2 * h)
-    return g
 
 
 def term_fn(name, inputs, params, samples, cfg, per_step=False):

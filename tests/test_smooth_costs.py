@@ -24,22 +24,14 @@ from psbmpc_jax.objective import objective
 from psbmpc_jax.ownship import Trajectory
 from psbmpc_jax.packing import pack
 
+from conftest import central_difference
+
 LN99 = math.log(99.0)
 
 
 def random_states(rng, shape, spread=40.0):
     return np.stack([rng.uniform(-spread, spread, shape), rng.uniform(-spread, spread, shape),
                      rng.uniform(-math.pi, math.pi, shape), rng.uniform(0.0, 2.0, shape)], axis=-1)
-
-
-def central_difference(f, x, h=1e-6):
-    x = np.asarray(x, float)
-    g = np.zeros_like(x)
-    for idx in np.ndindex(x.shape):
-        e = np.zeros_like(x)
-        e[idx] = h
-        g[idx] = (f(x + e) - f(x - e)) / (2 * h)
-    return g
 
 
 # ============================================================================ risk pieces

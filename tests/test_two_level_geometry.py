@@ -29,6 +29,8 @@ from psbmpc_jax.two_level.riparian import (LegCorridor, clear_corridor_cache, co
 from psbmpc_jax.two_level.static_obstacles import (StaticCircles, circle_residuals, circles_from_land,
                                                    concat_circles, enclosing_circle, from_yaml)
 
+from conftest import central_difference, star
+
 
 def rot(psi):
     return np.array([[math.cos(psi), math.sin(psi)], [-math.sin(psi), math.cos(psi)]])
@@ -110,13 +112,7 @@ def test_path_frame_jit_grad_traced_leg():
     # gradient w.r.t. the waypoints against central differences
     fun = lambda ww: jnp.sum(to_path_frame(p, ww, 1) * jnp.array([0.3, -0.7]))
     gw = np.asarray(jax.grad(fun)(jnp.asarray(w)))
-    h, fd = 1e-5, np.zeros_like(w)
-    for i in range(w.shape[0]):
-        for k in range(2):
-            e = np.zeros_like(w)
-            e[i, k] = h
-            fd[i, k] = (float(fun(w + e)) - float(fun(w - e))) / (2 * h)
-    np.testing.assert_allclose(gw, fd, atol=1e-6)
+    np.testing.assert_allclose(gw, central_difference(fun, w, 1e-5), atol=1e-6)
     # switch_frame under jit with a traced index
     q = np.asarray(to_path_frame(p, w, 0))
     sw = jax.jit(lambda x, y, j: switch_frame(x, y, w, j))
@@ -256,12 +252,6 @@ def test_channel_corridor_radius_selects_land():
     c0 = leg_corridor(w, 0, [], margin=MARGIN, half_width=20.0, sample=10.0)
     np.testing.assert_array_equal(c0.upper, 20.0)
     np.testing.assert_array_equal(c0.lower, -20.0)
-
-
-def star(rng, n, cx, cy, r_min, r_max):
-    ang = (np.arange(n) + rng.uniform(-0.3, 0.3, n)) * (2 * np.pi / n)
-    rad = rng.uniform(r_min, r_max, n)
-    return np.stack([cx + rad * np.cos(ang), cy + rad * np.sin(ang)], axis=-1)
 
 
 @pytest.mark.parametrize("seed", [0, 1])
@@ -423,13 +413,7 @@ def test_circle_residuals_values_and_gradients():
     assert h.shape == (6, 3)
     fun = lambda x: jnp.sum(circle_residuals(x, circles, r_os) * jnp.arange(1.0, 4.0))
     g = np.asarray(jax.grad(fun)(jnp.asarray(p)))
-    eps, fd = 1e-6, np.zeros_like(p)
-    for i in range(p.shape[0]):
-        for k in range(2):
-            e = np.zeros_like(p)
-            e[i, k] = eps
-            fd[i, k] = (float(fun(p + e)) - float(fun(p - e))) / (2 * eps)
-    np.testing.assert_allclose(g, fd, atol=1e-6)
+    np.testing.assert_allclose(g, central_difference(fun, p, 1e-6), atol=1e-6)
     # at a centre: value r + r_os, finite gradient (no NaN)
     at = circles.centres[:1]
     np.testing.assert_allclose(np.asarray(circle_residuals(at, circles, r_os))[0, 0], circles.radii[0] + r_os)

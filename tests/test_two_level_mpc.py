@@ -15,6 +15,8 @@ from psbmpc_jax.two_level import path_mpc as pm
 from psbmpc_jax.two_level.path_mpc import (PathMpcData, PathMpcSettings, make_circles, make_legs, path_coordinates,
                                            rk4_step, solve_path_mpc)
 
+from conftest import central_difference
+
 SET = PathMpcSettings(N_p=20, U_max=4.0)
 
 
@@ -65,15 +67,10 @@ def test_rollout_and_cost_equal_numpy_and_gradients_equal_central_differences():
         for fn in (jax.jit(lambda v: pm.path_mpc_cost(v, d, s)),
                    jax.jit(lambda v: jnp.sum(jnp.sin(pm.path_mpc_ineq(v, d, s))))):
             g = np.asarray(jax.jit(jax.grad(fn))(jnp.asarray(u)))
-            fd = np.zeros_like(u)
-            for idx in np.ndindex(*u.shape):
-                e = np.zeros_like(u)
-                e[idx] = 1e-6
-                fd[idx] = (float(fn(jnp.asarray(u + e))) - float(fn(jnp.asarray(u - e)))) / 2e-6
-            np.testing.assert_allclose(g, fd, rtol=1e-5, atol=1e-6)
+            np.testing.assert_allclose(g, central_difference(fn, u, 1e-6), rtol=1e-5, atol=1e-6)
 
 
-def closed_loop(legs, circles, x0, steps, goal, settings=SET, j_switch=None):
+def closed_loop(legs, circles, x0, steps, goal, settings=SET):
     x, u_prev, prev, j = np.asarray(x0, float), np.asarray(x0, float)[2:], None, 0
     traj, results = [x.copy()], []
     n_legs = int(legs.psi.shape[0])

@@ -26,6 +26,8 @@ from psbmpc_jax.reference_two_level import ground_avoiding_cv_reference, ray_lan
 from psbmpc_jax.two_level.prediction import (DEFAULT_BETA, ground_avoiding_cv, predict_targets,
                                              ray_land_distance)
 
+from conftest import star
+
 CFG = PlannerConfig(dtype="float64")
 #: One chart shape for every prediction test (random land, the wall, "no land"): one compilation per mode.
 CAPS = Capacities(polygons=4, vertices=64)
@@ -37,13 +39,6 @@ ray_jit = jax.jit(ray_land_distance, static_argnames=("block",))
 
 def chart_of(polygons, caps=CAPS):
     return pack_world(polygons, CFG, caps).polygons
-
-
-def star(rng, n, cx, cy, r_min, r_max):
-    """Star-shaped simple ring about (cx, cy) (angular gaps < pi)."""
-    ang = (np.arange(n) + rng.uniform(-0.3, 0.3, n)) * (2 * np.pi / n)
-    rad = rng.uniform(r_min, r_max, n)
-    return np.stack([cx + rad * np.cos(ang), cy + rad * np.sin(ang)], axis=-1)
 
 
 def random_land(rng, k=3):
