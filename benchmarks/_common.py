@@ -51,6 +51,24 @@ def time_compiled(prepared, config, repeats: int, warmup: int = 1):
     return compile_s, times, out[2]
 
 
+def time_interleaved(slots, repeats: int) -> list:
+    """Time ``slots`` (dicts with ``point``, a dict, and ``call``, a no-argument function returning device
+    arrays) round-robin: one untimed call each, then ``repeats`` rounds timing every slot once per round with
+    ``block_until_ready`` (the machine's slow and fast spells fall on every slot alike).  Returns one point per
+    slot: its ``point`` with :func:`stats` of its times."""
+    import time
+
+    for s in slots:
+        jax.block_until_ready(s["call"]())
+    times = [[] for _ in slots]
+    for _ in range(repeats):
+        for s, t in zip(slots, times):
+            t0 = time.perf_counter()
+            jax.block_until_ready(s["call"]())
+            t.append(time.perf_counter() - t0)
+    return [dict(s["point"], **stats(t)) for s, t in zip(slots, times)]
+
+
 def environment_meta(benchmark: str, **extra) -> dict:
     """Device, versions, commit and date of this run (recorded with every result file)."""
     dev = jax.devices()[0]

@@ -16,7 +16,6 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-import time
 
 import jax
 import jax.numpy as jnp
@@ -29,7 +28,7 @@ from psbmpc_jax.packing import pack_world
 from psbmpc_jax.solve import solve
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _common import environment_meta, stats, write_results  # noqa: E402
+from _common import environment_meta, time_interleaved, write_results  # noqa: E402
 
 
 def nearest_step_slots(situation, sizes=(39, 1014, 2028)):
@@ -80,15 +79,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     situation = nidelva_head_on()
     slots = nearest_step_slots(situation) + solve_slots(situation)
-    for s in slots:
-        jax.block_until_ready(s["call"]())
-        s["times"] = []
-    for _ in range(args.repeats):
-        for s in slots:
-            t0 = time.perf_counter()
-            jax.block_until_ready(s["call"]())
-            s["times"].append(time.perf_counter() - t0)
-    points = [dict(s["point"], **stats(s["times"])) for s in slots]
+    points = time_interleaved(slots, args.repeats)
     for p in points:
         print({k: v for k, v in p.items() if k not in ("min_ms", "max_ms", "q1_ms", "q3_ms")})
     meta = environment_meta("exact grounding layouts: culled vs dense (PlannerConfig.grounding_search)",

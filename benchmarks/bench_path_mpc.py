@@ -18,14 +18,13 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-import time
 import warnings
 
 import jax
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _common import environment_meta, stats, write_results  # noqa: E402
+from _common import environment_meta, time_interleaved, write_results  # noqa: E402
 
 
 def build(name):
@@ -83,15 +82,7 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default=os.path.join(os.path.dirname(os.path.abspath(__file__)), "results"))
     args = ap.parse_args(argv)
     slots = slots_for("fjord", "mahipala2023_7_combined") + slots_for("smooth000", "smooth_000_reconstruction")
-    for s in slots:
-        jax.block_until_ready(s["call"]())
-        s["times"] = []
-    for _ in range(args.repeats):
-        for s in slots:
-            t0 = time.perf_counter()
-            jax.block_until_ready(s["call"]())
-            s["times"].append(time.perf_counter() - t0)
-    points = [dict(s["point"], **stats(s["times"])) for s in slots]
+    points = time_interleaved(slots, args.repeats)
     for p in points:
         print({k: v for k, v in p.items() if k not in ("min_ms", "max_ms", "q1_ms", "q3_ms")})
     meta = environment_meta("two-level MPC: upper-level NMPC solve and whole update", repeats=args.repeats,

@@ -17,14 +17,13 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-import time
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _common import environment_meta, stats, write_results  # noqa: E402
+from _common import environment_meta, time_interleaved, write_results  # noqa: E402
 from bench_path_mpc import build  # noqa: E402
 
 
@@ -140,15 +139,7 @@ def main(argv=None) -> int:
                                     violation=float(r2.max_violation), status=int(r2.status),
                                     outer=int(r2.outer_iterations), inner=int(r2.inner_iterations)),
                       "call": run_multiple})
-    for sl in slots:
-        jax.block_until_ready(sl["call"]())
-        sl["times"] = []
-    for _ in range(args.repeats):
-        for sl in slots:
-            t0 = time.perf_counter()
-            jax.block_until_ready(sl["call"]())
-            sl["times"].append(time.perf_counter() - t0)
-    points = [dict(sl["point"], **stats(sl["times"])) for sl in slots]
+    points = time_interleaved(slots, args.repeats)
     for p in points:
         print({k: (round(v, 4) if isinstance(v, float) else v) for k, v in p.items()
                if k not in ("min_ms", "max_ms", "q1_ms", "q3_ms", "scenario")})
