@@ -194,3 +194,18 @@ def test_sbmpc_every_holds_the_modification_between_solves():
         assert pl.chi_c == pytest.approx(math.remainder(pl.chi_d + pl.chi_m, 2 * math.pi), abs=1e-12)
     with pytest.raises(ValueError, match="sbmpc_every"):
         TwoLevelSettings(sbmpc_every=0)
+
+
+def test_scenario_defaults_are_the_library_defaults():
+    """mpc.two_level's defaults (TwoLevelSpec, kept free of JAX for the scenario loader) equal the library's
+    (TwoLevelSettings, PathMpcSettings), except sbmpc_every: scenario files use SPEC §2.4's 5 (MPC every 1 s,
+    SB-MPC every 5 s), the library solves both levels at every call unless told otherwise."""
+    spec, lib, path = TwoLevelSpec(), TwoLevelSettings(), PathMpcSettings()
+    for name in ("N_p", "dt", "Q", "M", "chi_span", "U_max", "r_os"):
+        assert getattr(spec, name) == getattr(path, name), name
+    names = {"compare": "prediction_compare", "zeta_shape": "zeta_shape"}
+    for name in ("corridor_half_width", "corridor_sample", "corridor_radius", "corridor_margin", "circle_margin",
+                 "r_accept", "beta", "d_critical", "compare", "eta1", "eta2", "d_close", "zeta_d_safe", "zeta_shape",
+                 "nominal", "plan_stride"):
+        assert getattr(spec, name) == getattr(lib, names.get(name, name)), name
+    assert (spec.sbmpc_every, lib.sbmpc_every) == (5, 1)

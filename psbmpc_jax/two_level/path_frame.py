@@ -200,14 +200,18 @@ def from_path_frame(points_p, waypoints, j):
     return jnp.stack([x + a[0], y + a[1]], axis=-1)
 
 
+def _check_leg_data(start, psi) -> None:
+    if np.shape(start) != (2,) or np.ndim(psi) != 0:
+        raise ValueError(f"start must have shape [2] and psi be a scalar, got {np.shape(start)} and "
+                         f"{np.shape(psi)}")
+
+
 def to_leg_frame(points, start, psi):
     """Eq. (3) from leg data: NED ``points [..., 2]`` -> (x_p, y_p) ``[..., 2]`` = R(ψ)(p − start), for a leg
     given by its start ``[2]`` and course ``psi`` (e.g. ``PathLegs`` rows or a ``LegCorridor``, possibly
     traced).  jax.numpy, no value checks (for use inside ``jit``)."""
     _check_points(points, "points")
-    if np.shape(start) != (2,) or np.ndim(psi) != 0:
-        raise ValueError(f"start must have shape [2] and psi be a scalar, got {np.shape(start)} and "
-                         f"{np.shape(psi)}")
+    _check_leg_data(start, psi)
     p = _float_array(points)
     a = jnp.asarray(start, p.dtype)
     ang = jnp.asarray(psi, p.dtype)
@@ -218,9 +222,7 @@ def to_leg_frame(points, start, psi):
 def from_leg_frame(points_p, start, psi):
     """Inverse of :func:`to_leg_frame`: start + R(ψ)ᵀ [x_p; y_p]."""
     _check_points(points_p, "points_p")
-    if np.shape(start) != (2,) or np.ndim(psi) != 0:
-        raise ValueError(f"start must have shape [2] and psi be a scalar, got {np.shape(start)} and "
-                         f"{np.shape(psi)}")
+    _check_leg_data(start, psi)
     q = _float_array(points_p)
     a = jnp.asarray(start, q.dtype)
     ang = jnp.asarray(psi, q.dtype)
