@@ -345,15 +345,6 @@ def _prepare(px, py, tw, edges, nxt, n, tile, chunk):
     return tiles, chunks, 64 * jnp.finfo(px.dtype).eps * (scale + 1.0), odd_overflow
 
 
-def _full_argmax(px, py, tw, score, edges, n):
-    """Argmax over time of ``score`` for every polygon and column, visiting every valid edge: ``[P, B]``."""
-    def one(_, poly):
-        d, ex, ey = polygon_distance(px, py, poly[0], poly[1])
-        return None, jnp.argmax(score(d, ex, ey, tw[:, None]), axis=0).astype(jnp.int32)
-
-    return lax.scan(one, None, (edges, n))[1]
-
-
 def polygon_argmax(px, py, tw, score, bound, edges, nxt, n, with_direction=True, *, tile=32, chunk=8,
                    chunk_cap=16):
     """For every polygon and column, the time index maximising ``score(d, ex, ey, w)`` over the points
@@ -383,7 +374,8 @@ def polygon_argmax(px, py, tw, score, bound, edges, nxt, n, with_direction=True,
         return overflow | live.overflow, lax.cond(jnp.all(live.idle), lambda: jnp.zeros(B, jnp.int32), best)
 
     overflow, k = lax.scan(one, odd_overflow, chunks)
-    return lax.cond(overflow, lambda: _full_argmax(px, py, tw, score, edges, n), lambda: k)
+    return lax.cond(overflow, lambda: dense_argmax(px, py, tw, score, edges, n, with_direction, block=1),
+                    lambda: k)
 
 
 # ------------------------------------------------------------------------------------------ dense search
