@@ -205,6 +205,10 @@ class TwoLevelPlanner:
                                     [(c.s, c.lower, c.upper) for c in corridors],
                                     half_width=settings.corridor_half_width)
         self.circle_arrays = make_circles(self.circles.centres, self.circles.radii)
+        # the route and circles on the device in the solve's dtype, once (not at every update)
+        dtype = jnp.float64 if self.config.dtype == "float64" else jnp.float32
+        self.device_legs, self.device_circles = (jax.tree.map(lambda a: jnp.asarray(a, dtype), t)
+                                                 for t in (self.legs, self.circle_arrays))
         self.chart = pack_world(self.polygons, PlannerConfig(dtype=self.config.dtype)).polygons
         # fixed route capacities: the nominal route and the targets' predicted routes change length from one
         # update to the next, which would otherwise recompile the grid search
@@ -245,10 +249,9 @@ class TwoLevelPlanner:
         state = self.initial_state(own) if state is None else state
         j = int(active_leg(own[:2], self.waypoints, state.j, s.r_accept))
         j = min(j, len(self.waypoints) - 2)
-        dtype = jnp.float64 if self.config.dtype == "float64" else jnp.float32
+        dtype = self.device_legs.wp.dtype
         data = PathMpcData(jnp.asarray(own, dtype), jnp.asarray(state.u_prev, dtype), jnp.asarray(j, jnp.int32),
-                           jnp.asarray(self.U_ref, dtype), jax.tree.map(lambda a: jnp.asarray(a, dtype), self.legs),
-                           jax.tree.map(lambda a: jnp.asarray(a, dtype), self.circle_arrays))
+                           jnp.asarray(self.U_ref, dtype), self.device_legs, self.device_circles)
         path = jax.device_get(solve_path_mpc(data, s.path, previous=state.u_plan))
         chi_d, U_d = float(path.u[0, 0]), float(path.u[0, 1])
         fresh = state.u_plan is None or state.since + 1 >= s.sbmpc_every
