@@ -219,13 +219,14 @@ def _outside_problem(seed):
     return polys, jnp.asarray(p[..., 0]), jnp.asarray(p[..., 1])
 
 
+@pytest.mark.parametrize("search", ["culled", "dense"])
 @pytest.mark.parametrize("wind", [0.0, 3.0])
-def test_gradient_equals_central_differences(wind):
+def test_gradient_equals_central_differences(wind, search):
     polys, px, py = _outside_problem(5)
     verts, nxt, n = pack_chart(polys)
     T = px.shape[0]
     t, mask, params = jnp.arange(T) * DT, jnp.ones(len(polys), bool), Params(V_w=wind, wind_dir=-0.4)
-    total = jax.jit(lambda x, y: jnp.sum(grounding_costs(x, y, t, verts, nxt, n, mask, params)))
+    total = jax.jit(lambda x, y: jnp.sum(grounding_costs(x, y, t, verts, nxt, n, mask, params, search)))
     gx, gy = (np.asarray(g) for g in jax.grad(total, argnums=(0, 1))(px, py))
     assert np.count_nonzero(gx) > 0
     h = 1e-5
@@ -244,25 +245,27 @@ def _finite(tree):
     return all(bool(jnp.all(jnp.isfinite(x))) for x in jax.tree.leaves(tree))
 
 
+@pytest.mark.parametrize("search", ["culled", "dense"])
 @pytest.mark.parametrize("wind", [0.0, 5.0])
-def test_degenerate_points_have_no_nan(wind):
+def test_degenerate_points_have_no_nan(wind, search):
     """On an edge, on a vertex, inside land, near but outside: value, jvp and vjp are finite."""
     square = np.array([[0.0, 0.0], [10.0, 0.0], [10.0, 10.0], [0.0, 10.0]])
     verts, nxt, n = pack_chart([square])
     pts = np.array([[5.0, 0.0], [0.0, 0.0], [10.0, 10.0], [5.0, 5.0], [5.0, -3.0], [-2.0, -2.0]])
     px, py = jnp.asarray(pts[:, :1].T.repeat(2, 0)), jnp.asarray(pts[:, 1:].T.repeat(2, 0))   # [T = 2, B = 6]
     t, params = jnp.arange(2) * DT, Params(V_w=wind, wind_dir=2.0)
-    f = lambda x, y: grounding_costs(x, y, t, verts, nxt, n, jnp.ones(1, bool), params)
+    f = lambda x, y: grounding_costs(x, y, t, verts, nxt, n, jnp.ones(1, bool), params, search)
     h, tangent = jax.jvp(f, (px, py), (jnp.ones_like(px), jnp.ones_like(py)))
     _, pull = jax.vjp(f, px, py)
     assert _finite(h) and _finite(tangent) and _finite(pull(jnp.ones_like(h)))
     np.testing.assert_allclose(np.asarray(h)[0, :4], float(params.G1) * (1.0 + float(params.G3) * 5.0))
 
 
-def test_zero_polygons_give_an_empty_nan_free_result():
+@pytest.mark.parametrize("search", ["culled", "dense"])
+def test_zero_polygons_give_an_empty_nan_free_result(search):
     px, py = jnp.ones((5, 3)), jnp.zeros((5, 3))
     verts, nxt, n, mask = jnp.zeros((0, 4, 2)), jnp.zeros((0, 4), jnp.int32), jnp.zeros(0, jnp.int32), jnp.zeros(0, bool)
-    f = lambda x, y: grounding_costs(x, y, jnp.arange(5) * DT, verts, nxt, n, mask, Params(V_w=2.0))
+    f = lambda x, y: grounding_costs(x, y, jnp.arange(5) * DT, verts, nxt, n, mask, Params(V_w=2.0), search)
     h, tangent = jax.jvp(f, (px, py), (jnp.ones_like(px), jnp.ones_like(py)))
     assert h.shape == (0, 3) and tangent.shape == (0, 3)
     gx, gy = jax.grad(lambda x, y: jnp.sum(f(x, y)), argnums=(0, 1))(px, py)

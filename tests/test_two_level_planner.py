@@ -86,6 +86,15 @@ def test_bad_settings_name_the_field():
         TwoLevelPlanner([[0.0, 0.0]], U_ref=1.0)
 
 
+def test_bad_plan_inputs_name_the_argument(planner):
+    with pytest.raises(ValueError, match="own_state must be 4 finite numbers"):
+        planner.plan([0.0, 0.0, float("nan"), 1.0], np.zeros((0, 4)))
+    with pytest.raises(ValueError, match=r"targets must be a finite \[I, 4\] array"):
+        planner.plan([0.0, 0.0, 0.0, 1.0], np.zeros((2, 3)))
+    with pytest.raises(ValueError, match=r"targets must be a finite \[I, 4\] array"):
+        planner.plan([0.0, 0.0, 0.0, 1.0], [[10.0, 0.0, np.inf, 1.0]])
+
+
 # ============================================================================================ scenario + simulator
 TINY = {
     "name": "tiny_two_level", "description": "A channel, one target head-on: the two-level method",

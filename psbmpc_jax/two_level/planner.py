@@ -243,9 +243,10 @@ class TwoLevelPlanner:
         own = np.asarray(own_state, dtype=float).reshape(-1)
         if own.shape != (4,) or not np.all(np.isfinite(own)):
             raise ValueError(f"own_state must be 4 finite numbers (x, y, chi, U), got {np.asarray(own_state)!r}")
-        tg = np.asarray(targets, dtype=float).reshape(-1, 4) if np.size(targets) else np.zeros((0, 4))
-        if not np.all(np.isfinite(tg)):
-            raise ValueError("targets must be finite [I, 4] (x, y, chi, U)")
+        tg = np.asarray(targets, dtype=float) if np.size(targets) else np.zeros((0, 4))
+        if tg.ndim != 2 or tg.shape[1] != 4 or not np.all(np.isfinite(tg)):
+            raise ValueError(f"targets must be a finite [I, 4] array of (x, y, chi, U) rows, got shape "
+                             f"{np.shape(targets)}")
         state = self.initial_state(own) if state is None else state
         j = int(active_leg(own[:2], self.waypoints, state.j, s.r_accept))
         j = min(j, len(self.waypoints) - 2)
