@@ -150,6 +150,8 @@ class SmoothSpec:
         k_ntp: grounding-penalty weight per lost trajectory point.
         terminal: ``"full"``, ``"position"`` or ``"soft"`` terminal condition of the DOCP.
         n_starts: starts of the DOCP solve (multi-start).
+        previous_start: start 1 of the DOCP is the previous update's kept sequence, shifted (needs
+            n_starts >= 2; ignored by ``sbmpc_init``, which has no DOCP).
     """
 
     T_init: float = 60.0
@@ -160,6 +162,7 @@ class SmoothSpec:
     k_ntp: float = 1.0
     terminal: str = "full"
     n_starts: int = 4
+    previous_start: bool = False
 
 
 @dataclass(frozen=True)
@@ -403,7 +406,7 @@ _MC_KEYS = ("runs", "seed")
 _MPC_KEYS = ("preset", "update_period_s", "n_ps", "config", "params", "speed_factors", "course_offsets_deg",
              "method", "smooth", "fis", "solver", "refine", "sbmpc", "informed", "two_level")
 _SMOOTH_KEYS = ("T_init_s", "T_mpc_s", "dt_s", "corridor_half_width_m", "domain_radius_m", "k_ntp", "terminal",
-                "n_starts")
+                "n_starts", "previous_start")
 _FIS_KEYS = ("d_cl_m", "e_cl_m", "eps", "n_y", "completion")
 _SOLVER_KEYS = ("max_outer", "max_inner", "tol", "method")
 _REFINE_KEYS = ("n_starts", "horizon_s", "colregs", "block_s")
@@ -918,7 +921,12 @@ def _smooth_spec(d) -> SmoothSpec:
         kw["terminal"] = _choice(d["terminal"], _TERMINALS, f"{w}.terminal")
     if "n_starts" in d:
         kw["n_starts"] = integer(d["n_starts"], f"{w}.n_starts", ge=1, le=MAX_STARTS)
+    if "previous_start" in d:
+        kw["previous_start"] = _bool(d["previous_start"], f"{w}.previous_start")
     spec = SmoothSpec(**kw)
+    if spec.previous_start and spec.n_starts < 2:
+        raise ValueError(f"{w}.previous_start needs {w}.n_starts >= 2 (start 0 is always the trajectory Ψ), "
+                         f"got n_starts {spec.n_starts}")
     for key, name in (("T_init_s", "T_init"), ("T_mpc_s", "T_mpc")):
         given = f"{w}.{key}" + ("" if key in d else " (default)")
         n = multiple_of(getattr(spec, name), spec.dt, given, f"{w}.dt_s" + ("" if "dt_s" in d else " (default)"))

@@ -86,14 +86,14 @@ def with_(path, value, data=None):
 def test_method_keys_parse_into_the_spec():
     d = tiny(method="smooth_sbmpc",
              smooth={"T_init_s": 30, "T_mpc_s": 10, "dt_s": 0.5, "corridor_half_width_m": 12, "domain_radius_m": 3,
-                     "k_ntp": 2.5, "terminal": "soft", "n_starts": 2},
+                     "k_ntp": 2.5, "terminal": "soft", "n_starts": 2, "previous_start": True},
              fis={"d_cl_m": 35, "e_cl_m": 4, "eps": 1e-5, "n_y": 101, "completion": "literal"},
              solver={"max_outer": 7, "max_inner": 9, "tol": 1e-4, "method": "adam"},
              refine={"n_starts": 3, "horizon_s": 10, "colregs": "none"})
     m = scenario_from_dict(d).mpc
     assert m.method == "smooth_sbmpc"
     assert m.smooth == SmoothSpec(T_init=30.0, T_mpc=10.0, dt=0.5, corridor_half_width=12.0, domain_radius=3.0,
-                                  k_ntp=2.5, terminal="soft", n_starts=2)
+                                  k_ntp=2.5, terminal="soft", n_starts=2, previous_start=True)
     assert m.fis == FisSpec(d_cl=35.0, e_cl=4.0, eps=1e-5, n_y=101, completion="literal")
     assert m.solver == SolverSpec(max_outer=7, max_inner=9, tol=1e-4, method="adam")
     assert m.refine == RefineSpec(n_starts=3, horizon=10.0, colregs="none", fis_e_cl=4.0, fis_n_y=101)
@@ -146,6 +146,10 @@ BAD = [
     ("n_starts", with_("mpc.smooth.n_starts", 0), r"mpc.smooth.n_starts must be an integer >= 1, got 0"),
     ("n_starts_float", with_("mpc.smooth.n_starts", 2.0), r"mpc.smooth.n_starts must be an integer >= 1, got 2.0"),
     ("k_ntp", with_("mpc.smooth.k_ntp", "high"), r"mpc.smooth.k_ntp must be a finite number, got 'high'"),
+    ("previous_start", with_("mpc.smooth.previous_start", "yes"), r"mpc.smooth.previous_start must be true or false"),
+    ("previous_start_one_start", with_("mpc.smooth.previous_start", True),
+     r"mpc.smooth.previous_start needs mpc.smooth.n_starts >= 2 \(start 0 is always the trajectory Ψ\), got "
+     r"n_starts 1"),
     ("period_vs_smooth_dt", with_("mpc.smooth.dt_s", 4, tiny(method="sbmpc_init",
                                                              smooth={"T_init_s": 16, "T_mpc_s": 8})),
      r"mpc.update_period_s \(2\) must be a multiple of mpc.smooth.dt_s \(4\)"),
@@ -256,6 +260,44 @@ def test_smooth_planner_arguments_come_from_the_file():
     assert (w.d_cl, sol.max_outer, sol.max_inner) == (30.0, 2, 5)
     assert kw["n_starts"] == 1 and kw["init_only"] is False and kw["dtype"] == "float32"
     assert colav.smooth_arguments(scenario_from_dict(tiny(method="sbmpc_init")))["init_only"] is True
+    assert "previous_start" not in kw                                  # off: the planner's own default
+    on = {"T_init_s": 8, "T_mpc_s": 4, "dt_s": 1, "n_starts": 2, "previous_start": True}
+    assert colav.smooth_arguments(scenario_from_dict(tiny(method="smooth_sbmpc", smooth=on)))["previous_start"]
+    assert "previous_start" not in colav.smooth_arguments(scenario_from_dict(tiny(method="sbmpc_init", smooth=on)))
+
+
+class PreviousRecorder:
+    """A planner with ``SmoothSBMPCPlanner``'s interface that records the ``previous`` plans the simulator hands
+    it and returns distinct, known sequences (row j of update m, run r: U 1, χ = 0.01 (10 m + j) + 0.001 r)."""
+
+    seen: list = []
+
+    def __init__(self, polygons=(), *, settings, previous_start=False, **kw):
+        assert previous_start
+        self.n = settings.n_mpc
+
+    def plan_batch(self, states, route, targets, last, segments, previous=None):
+        m, R = len(PreviousRecorder.seen), len(states)
+        PreviousRecorder.seen.append(None if previous is None else np.array(previous))
+        chi = 0.01 * (10 * m + np.arange(self.n))[None, :] + 0.001 * np.arange(R)[:, None]
+        controls = np.stack([np.ones_like(chi), chi], axis=-1)
+        zero = np.zeros(R)
+        return colav.StepPlan(controls[:, 0], controls, np.zeros((R, 9, 4)), zero, zero, zero, np.ones(R, bool),
+                              zero.astype(int), zero.astype(int))
+
+
+def test_the_simulator_hands_the_shifted_previous_plan_to_the_next_update(monkeypatch):
+    monkeypatch.setattr(colav, "smooth_planner_class", lambda: PreviousRecorder)
+    PreviousRecorder.seen = []
+    on = {"T_init_s": 8, "T_mpc_s": 4, "dt_s": 1, "n_starts": 2, "previous_start": True}
+    r = simulate(scenario_from_dict(tiny(method="smooth_sbmpc", smooth=on)), batch="loop")
+    first, second = PreviousRecorder.seen                             # updates at 0 s and 2 s (period 2 s)
+    assert first is None
+    chi0 = 0.01 * np.arange(4)[None, :] + 0.001 * np.arange(2)[:, None]
+    expected = np.concatenate([chi0[:, 2:], chi0[:, 3:], chi0[:, 3:]], axis=1)   # 2 steps on, last row repeated
+    np.testing.assert_allclose(second[..., 1], expected, atol=1e-12)
+    np.testing.assert_allclose(second[..., 0], 1.0)
+    np.testing.assert_allclose(r.offsets[:, 0, 1, 1], 0.01 * 10 + 0.001 * np.arange(2))   # update 1's first row
 
 
 @pytest.mark.skipif(HAVE_PLANNER, reason="psbmpc_jax.smooth.planner exists")

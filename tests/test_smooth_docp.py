@@ -251,3 +251,71 @@ def test_bad_inputs_are_refused(kw, match):
     with pytest.raises(ValueError, match=match):
         smooth_sbmpc_step(args["state0"], args["route"], args["targets"], args["last"], args["land"],
                           args["buffered_land"], **{"settings": SETTINGS, **opts})
+
+
+# ================================================================================ previous-plan start
+_prepare_prev = jax.jit(prepare_step, static_argnames=("settings", "n_starts"))
+
+
+def test_previous_plan_is_start_one_and_without_one_the_starts_are_unchanged():
+    rng = np.random.default_rng(11)
+    state0, target = random_situation(rng)
+    n = SETTINGS.n_mpc
+    prev = np.stack([rng.uniform(0.1, 1.0, n), rng.uniform(-1.5, 1.5, n)], axis=-1)
+    plain = prepared(state0, target, n_starts=4)
+
+    def with_previous(valid):
+        return _prepare_prev(jnp.asarray(state0), jnp.asarray(ROUTE), jnp.asarray(target), jnp.asarray(LAST),
+                             jnp.asarray(0, jnp.int32), LAND, BUF, SmoothWeights(), ShipModel(), settings=SETTINGS,
+                             n_starts=4, previous=D.Previous(jnp.asarray(prev), jnp.asarray(valid)))
+
+    on, off = np.asarray(with_previous(True).starts), np.asarray(with_previous(False).starts)
+    base = np.asarray(plain.starts)
+    np.testing.assert_array_equal(off, base)                       # no previous plan: Ψ + 3 behaviours
+    np.testing.assert_array_equal(on[0], base[0])                  # Ψ stays row 0 (the safeguard's fallback)
+    np.testing.assert_array_equal(on[1], prev)
+    np.testing.assert_array_equal(on[2:], base[1:3])               # then the two best behaviours
+
+
+def test_shift_controls():
+    c = np.arange(12.0).reshape(6, 2)
+    np.testing.assert_array_equal(D.shift_controls(c, 0), c)
+    np.testing.assert_array_equal(D.shift_controls(c, 2), np.concatenate([c[2:], c[-1:], c[-1:]]))
+    np.testing.assert_array_equal(D.shift_controls(c, 6), np.repeat(c[-1:], 6, axis=0))
+    batch = np.stack([c, -c])
+    np.testing.assert_array_equal(D.shift_controls(batch, 1)[1], D.shift_controls(-c, 1))
+    for bad in (-1, 7, 1.0, True):
+        with pytest.raises(ValueError, match="steps"):
+            D.shift_controls(c, bad)
+
+
+def test_step_from_a_previous_plan_keeps_the_safeguard_and_resolving_from_its_own_plan_is_no_worse():
+    """With the previous plan as start 1 the kept sequence is still never worse than Ψ (J_d, violation); and
+    re-solving the same situation with the first solve's kept sequence as the previous plan ends at a J_d no
+    higher than the first (that start is already a feasible local optimum)."""
+    rng = np.random.default_rng(5)
+    for _ in range(3):
+        state0, target = random_situation(rng)
+        first = smooth_sbmpc_step(state0, ROUTE, target, LAST, LAND, BUF, settings=SETTINGS, n_starts=3)
+        again = smooth_sbmpc_step(state0, ROUTE, target, LAST, LAND, BUF, settings=SETTINGS, n_starts=3,
+                                  previous=np.asarray(first.controls))
+        for st in (first, again):
+            assert float(st.cost) <= float(st.warm_cost) * (1 + 1e-12) + 1e-12
+            assert float(st.violation) <= 1e-3
+        np.testing.assert_array_equal(np.asarray(again.starts[1]), np.asarray(first.controls))
+        assert float(again.start_cost[1]) <= float(first.cost) + 1e-6 * abs(float(first.cost))
+        assert float(again.cost) <= float(first.cost) + 1e-6 * abs(float(first.cost))
+
+
+@pytest.mark.parametrize("kw, match", [
+    (dict(previous=np.zeros((8, 2)) + [0.5, 0.0], n_starts=1), "n_starts >= 2"),
+    (dict(previous=np.zeros((7, 2)) + [0.5, 0.0], n_starts=2), r"previous must be \[8, 2\]"),
+    (dict(previous=np.zeros((8, 2)) + [0.5, 2.0], n_starts=2), "previous must lie in the DOCP's box"),
+    (dict(previous=np.zeros((8, 2)) + [0.05, 0.0], n_starts=2), "previous must lie in the DOCP's box"),
+    (dict(previous=np.full((8, 2), np.nan), n_starts=2), "previous must be finite"),
+    (dict(previous=np.full((8, 2), "a"), n_starts=2), "previous must be numeric"),
+])
+def test_bad_previous_is_refused(kw, match):
+    with pytest.raises(ValueError, match=match):
+        smooth_sbmpc_step(np.array([0.0, 0.0, 0.0, 1.0]), ROUTE, np.zeros((0, 4)), LAST, LAND, BUF,
+                          settings=SETTINGS, **kw)

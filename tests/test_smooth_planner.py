@@ -145,3 +145,46 @@ def test_float32_under_64_bit_jax_keeps_float32():
     plan = p.plan([0.0, 0.0, 0.0, 1.0], ROUTE, np.zeros((0, 4)), [1.0, 0.0], 1)
     assert plan.apply.dtype == np.float32 and plan.controls.dtype == np.float32 and plan.psi.dtype == np.float64
     assert jnp.asarray(1.0).dtype == jnp.float64                          # (the session is 64-bit)
+
+
+def test_previous_plan_rows_equal_single_plans_and_a_nan_row_means_none():
+    """``previous_start``: ``plan_batch`` with a previous plan per run (NaN throughout for a run without one)
+    equals ``plan`` row by row, with ``previous=None`` for that run; the kept sequence is never worse than Ψ."""
+    p = SmoothSBMPCPlanner(BANKS, settings=SETTINGS, n_starts=3, dtype="float64", previous_start=True)
+    states, targets, last, segments = runs(seed=3)
+    rng = np.random.default_rng(3)
+    previous = np.stack([np.stack([rng.uniform(0.2, 1.0, N), rng.uniform(-1.0, 1.0, N)], axis=-1) for _ in range(3)])
+    previous[1] = np.nan
+    batch = p.plan_batch(states, ROUTE, targets, last, segments, previous=previous)
+    for r in range(3):
+        one = p.plan(states[r], ROUTE, targets[r], last[r], segments[r], previous=None if r == 1 else previous[r])
+        np.testing.assert_allclose(batch.controls[r], one.controls, rtol=1e-7, atol=1e-7)
+        np.testing.assert_allclose(batch.cost[r], one.cost, rtol=1e-7, atol=1e-7)
+        assert float(one.cost) <= float(one.warm_cost) + 1e-9 and float(one.violation) <= 1e-3
+    # no previous plan at all is the plain planner with the same number of starts
+    plain = SmoothSBMPCPlanner(BANKS, settings=SETTINGS, n_starts=3, dtype="float64")
+    a = p.plan(states[0], ROUTE, targets[0], last[0], segments[0])
+    b = plain.plan(states[0], ROUTE, targets[0], last[0], segments[0])
+    np.testing.assert_allclose(a.controls, b.controls, rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("kw, call, match", [
+    (dict(previous_start=True, n_starts=1), None, "previous_start needs"),
+    (dict(previous_start=True, init_only=True), None, "previous_start needs"),
+    (dict(previous_start="yes"), None, "previous_start must be a bool"),
+    (dict(), lambda p: p.plan([0, 0, 0, 1], ROUTE, np.zeros((0, 4)), [1, 0], 1, previous=np.ones((N, 2))),
+     "previous is only used with previous_start"),
+    (dict(previous_start=True), lambda p: p.plan([0, 0, 0, 1], ROUTE, np.zeros((0, 4)), [1, 0], 1,
+                                                 previous=np.ones((N + 1, 2))), "previous must be"),
+    (dict(previous_start=True), lambda p: p.plan_batch(np.zeros((2, 4)) + [0, 0, 0, 1], ROUTE, np.zeros((2, 0, 4)),
+                                                       np.ones((2, 2)), [1, 1], previous=np.ones((2, N, 2)) * [1, 3]),
+     "box"),
+    (dict(previous_start=True), lambda p: p.plan_batch(np.zeros((2, 4)) + [0, 0, 0, 1], ROUTE, np.zeros((2, 0, 4)),
+                                                       np.ones((2, 2)), [1, 1],
+                                                       previous=np.where(np.arange(N)[None, :, None] == 0, np.nan,
+                                                                         np.ones((2, N, 2)))), "finite"),
+])
+def test_bad_previous_plan_options_are_refused(kw, call, match):
+    with pytest.raises(ValueError, match=match):
+        p = SmoothSBMPCPlanner((), settings=SETTINGS, dtype="float64", **({"n_starts": 2} | kw))
+        call(p)

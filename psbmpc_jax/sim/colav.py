@@ -304,8 +304,8 @@ def smooth_arguments(scenario) -> dict:
     ``mpc.smooth.k_ntp``; the rest SPEC_SEEDS §1.8 defaults), the ship model from the own-ship's spec (nominal
     speed, LOS lookahead, acceptance radius, autopilot time constants), the settings (``mpc.smooth``,
     ``mpc.fis``), the solver (the keys of ``mpc.solver`` over SolverSettings' defaults; None without any: the
-    planner's own default), the number of starts, ``init_only`` for ``sbmpc_init`` and the dtype of
-    ``mpc.config``."""
+    planner's own default), the number of starts, ``init_only`` for ``sbmpc_init``, the dtype of
+    ``mpc.config`` and ``previous_start`` (only when ``mpc.smooth.previous_start`` is on, not for ``sbmpc_init``)."""
     from ..nlp import SolverSettings
     from ..smooth.init_stage import ShipModel, SmoothSettings, SmoothWeights
 
@@ -320,7 +320,8 @@ def smooth_arguments(scenario) -> dict:
                                 corridor_half_width=sm.corridor_half_width, terminal=sm.terminal,
                                 fis_completion=fis.completion, n_y=fis.n_y),
         solver=SolverSettings(**given) if given else None,
-        n_starts=sm.n_starts, init_only=mpc.method == "sbmpc_init", dtype=mpc.config.dtype)
+        n_starts=sm.n_starts, init_only=mpc.method == "sbmpc_init", dtype=mpc.config.dtype,
+        **({"previous_start": True} if sm.previous_start and mpc.method != "sbmpc_init" else {}))
 
 
 def tracked_targets(track_x: np.ndarray) -> np.ndarray:
@@ -332,14 +333,30 @@ def tracked_targets(track_x: np.ndarray) -> np.ndarray:
 
 
 class SmoothGroup:
-    """The own-ship under ``smooth_sbmpc`` / ``sbmpc_init``: one ``plan_batch`` call per update for all runs."""
+    """The own-ship under ``smooth_sbmpc`` / ``sbmpc_init``: one ``plan_batch`` call per update for all runs.
+    With ``mpc.smooth.previous_start`` it keeps each run's last kept sequence and hands it, shifted by the
+    steps since that update, to the next update as a DOCP start."""
 
     ships = (0,)
 
     def __init__(self, scenario, planner_cls=None):
         cls = smooth_planner_class() if planner_cls is None else planner_cls
         self.step = float(scenario.mpc.smooth.dt)
-        self.planner = cls(scenario.polygons, batch="map", **smooth_arguments(scenario))
+        args = smooth_arguments(scenario)
+        self.previous_start = bool(args.get("previous_start", False))
+        self.planner = cls(scenario.polygons, batch="map", **args)
+        self._previous = None                                                  # (t [s], controls [R, N, 2])
+
+    def _shifted_previous(self, t: float):
+        if not self.previous_start or self._previous is None:
+            return None
+        from ..smooth.docp import shift_controls
+
+        t_prev, controls = self._previous
+        steps = int(round((t - t_prev) / self.step))
+        if steps > controls.shape[1]:
+            return np.full_like(controls, np.nan)
+        return shift_controls(controls, steps)
 
     def update(self, loop, k: int, keep_job) -> Decisions:
         R = loop.R
@@ -347,12 +364,16 @@ class SmoothGroup:
         targets = tracked_targets(loop.track_x[:, :, k])                        # [R, I, 4]
         last = np.stack([loop.u_c[:, 0], loop.chi_off[:, 0]], axis=-1)         # [R, 2] applied offsets
         route = loop.routes_ext[0, : loop.n_wp[0]]                              # the route, extended
+        t = float(loop.t[k])
+        extra = {"previous": self._shifted_previous(t)} if self.previous_start else {}
         t0 = time.perf_counter()
-        plan = self.planner.plan_batch(states, route, targets, last, np.asarray(loop.seg[:, 0]))
+        plan = self.planner.plan_batch(states, route, targets, last, np.asarray(loop.seg[:, 0]), **extra)
         plan = jax.device_get(plan)
         wall = time.perf_counter() - t0
         first = np.asarray(plan.apply, float).reshape(R, 2)
         controls = np.asarray(plan.controls, float).reshape(R, -1, 2)
+        if self.previous_start:
+            self._previous = (t, controls)
         info = {name: np.asarray(getattr(plan, name), float).reshape(R) for name in INFO_NAMES}
         return Decisions(jobs=[(r, 0) for r in range(R)], first=first,
                          costs=np.full((R, len(COST_NAMES)), np.nan), walls=np.full(R, wall / R), device_calls=1,

@@ -30,6 +30,7 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from ..costs.manoeuvring import gamma_sequence
 from ..costs.sbmpc import sbmpc_costs
@@ -140,7 +141,8 @@ class SmoothStep(NamedTuple):
         solver: the :class:`~psbmpc_jax.nlp.SolverResult` of the best start.
         init: the init stage's :class:`InitResult` (Ψ, offsets, …).  corridor: the corridor of Ψ, steps 0..N_mpc.
         warm_cost: J_d of the warm start Ψ.
-        starts: the starts ``[S, N_mpc, 2]`` (S = n_starts; row 0 is Ψ's offsets, then constant behaviours).
+        starts: the starts ``[S, N_mpc, 2]`` (S = n_starts; row 0 is Ψ's offsets, then the previous plan when
+            given and valid, then constant behaviours).
         start_cost, start_violation: J_d and violation of each start's result ``[S]``.
         best: index of the start whose result went into the safeguard (int32).
         iterations: inner solver iterations summed over the starts (int32).
@@ -162,20 +164,54 @@ class SmoothStep(NamedTuple):
     iterations: jax.Array
 
 
-def warm_starts(init: InitResult, n_starts: int, n: int):
+class Previous(NamedTuple):
+    """The previous update's kept sequence as a start of this update's DOCP (``previous_start``).
+
+    Attributes:
+        controls: ``[N_mpc, 2]`` (U_m, χ_m), already shifted to begin now (:func:`shift_controls`).
+        valid: bool scalar; False (no previous plan, e.g. at the first update): the start is a behaviour instead.
+    """
+
+    controls: jax.Array
+    valid: jax.Array
+
+
+def warm_starts(init: InitResult, n_starts: int, n: int, previous: Previous | None = None):
     """The starts ``[n_starts, n, 2]`` of the multi-start: Ψ's first ``n`` offsets, then the constant sequences
     of the ``n_starts − 1`` behaviours with the lowest total cost at τ₀ (``init.first_cost``; ties: enumeration
     order).  A behaviour whose constant sequence equals Ψ's (Ψ held it throughout) is ranked last, so it does
-    not duplicate start 0."""
+    not duplicate start 0.
+
+    With ``previous`` (needs ``n_starts >= 2``): row 1 is the previous update's sequence when
+    ``previous.valid``, and the behaviours fill rows 2…; when not valid the rows are those without it."""
     warm = init.controls[:n]
     if n_starts == 1:
+        if previous is not None:
+            raise ValueError("a previous-plan start needs n_starts >= 2 (row 0 is always Ψ)")
         return warm[None]
     table = behaviour_table(warm.dtype)
     same = jnp.all(table[:, None, :] == warm[None], axis=(1, 2))
     key = jnp.where(same, jnp.inf, init.first_cost)
     order = jnp.argsort(key, stable=True)[: n_starts - 1]
     const = jnp.broadcast_to(table[order][:, None, :], (n_starts - 1, n, 2))
-    return jnp.concatenate([warm[None], const], axis=0)
+    starts = jnp.concatenate([warm[None], const], axis=0)
+    if previous is None:
+        return starts
+    with_previous = jnp.concatenate([warm[None], previous.controls.astype(warm.dtype)[None], const[:-1]], axis=0)
+    return jnp.where(previous.valid, with_previous, starts)
+
+
+def shift_controls(controls, steps: int):
+    """A kept sequence ``[..., N, 2]`` as seen ``steps`` steps later: rows ``steps…N−1``, then the last row
+    repeated (host NumPy; ``steps`` in [0, N])."""
+    c = np.asarray(controls)
+    n = c.shape[-2]
+    if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or not 0 <= steps <= n:
+        raise ValueError(f"steps must be an integer in [0, {n}], got {steps!r}")
+    if steps == 0:
+        return c.copy()
+    tail = np.repeat(c[..., -1:, :], steps, axis=-2)
+    return np.concatenate([c[..., steps:, :], tail], axis=-2)
 
 
 def cast_tree(tree, dtype):
@@ -197,9 +233,9 @@ class Prepared(NamedTuple):
 
 
 def prepare_step(state0, route, targets, last, segment, land, buffered_land, weights, model, *,
-                 settings: SmoothSettings, n_starts: int) -> Prepared:
+                 settings: SmoothSettings, n_starts: int, previous: Previous | None = None) -> Prepared:
     """Traceable first part of a step: Alg. 1 (init stage), Alg. 3 (corridor of Ψ), the DOCP's data and starts
-    (no validation; every array already of one float dtype)."""
+    (no validation; every array already of one float dtype; ``previous``: see :func:`warm_starts`)."""
     init = init_stage_traced(state0, route, targets, last, land, weights, model, settings, segment)
     n = settings.n_mpc
     dtype = init.psi.dtype
@@ -208,7 +244,7 @@ def prepare_step(state0, route, targets, last, segment, land, buffered_land, wei
     corridor = jax.tree.map(lambda a: a[:n + 1], corridor)
     args = DocpArgs(init.psi[0], route, targets, last, init.psi[n], corridor, weights, model,
                     jnp.asarray(segment, jnp.int32))
-    return Prepared(init, corridor, args, warm_starts(init, n_starts, n))
+    return Prepared(init, corridor, args, warm_starts(init, n_starts, n, previous))
 
 
 def solve_step(prep: Prepared, solver: SolverSettings, *, settings: SmoothSettings, batch: str) -> SmoothStep:
@@ -237,10 +273,10 @@ def solve_step(prep: Prepared, solver: SolverSettings, *, settings: SmoothSettin
 
 
 def step_traced(state0, route, targets, last, segment, land, buffered_land, weights, model, solver, *,
-                settings: SmoothSettings, n_starts: int, batch: str) -> SmoothStep:
+                settings: SmoothSettings, n_starts: int, batch: str, previous: Previous | None = None) -> SmoothStep:
     """Traceable Smooth-SBMPC step (no validation; every array already of one float dtype)."""
     prep = prepare_step(state0, route, targets, last, segment, land, buffered_land, weights, model,
-                        settings=settings, n_starts=n_starts)
+                        settings=settings, n_starts=n_starts, previous=previous)
     return solve_step(prep, solver, settings=settings, batch=batch)
 
 
@@ -258,6 +294,28 @@ def check_step_options(settings, solver, n_starts, batch):
                          f"got {n_starts!r}")
     if batch not in BATCH_MODES:
         raise ValueError(f"batch must be one of {BATCH_MODES}, got {batch!r}")
+
+
+def check_previous(previous, n: int, name: str = "previous", lead: tuple = ()) -> np.ndarray:
+    """A previous-plan start ``lead + [n, 2]`` (U_m, χ_m) as float64 NumPy: finite, inside the DOCP's box
+    (``ValueError`` naming ``name`` otherwise).  With ``lead`` (runs), a row that is NaN throughout means "no
+    previous plan for this run"; a partly NaN row is an error."""
+    a = np.asarray(previous)
+    if a.dtype.kind not in "iuf":
+        raise ValueError(f"{name} must be numeric, got dtype {a.dtype}")
+    a = a.astype(np.float64)
+    if a.shape != (*lead, n, 2):
+        raise ValueError(f"{name} must be {list(lead) + [n, 2]} (U_m, chi_m) per DOCP step, got shape {a.shape}")
+    missing = np.all(np.isnan(a), axis=(-2, -1)) if lead else np.zeros((), bool)
+    bad = ~np.isfinite(a) & ~missing[..., None, None]
+    if np.any(bad):
+        raise ValueError(f"{name} must be finite (a run without a previous plan: NaN throughout its rows)")
+    lo, hi = np.asarray(LOWER), np.asarray(UPPER)
+    inside = np.where(missing[..., None, None], True, (a >= lo - 1e-6) & (a <= hi + 1e-6))
+    if not np.all(inside):
+        raise ValueError(f"{name} must lie in the DOCP's box: U_m in [{LOWER[0]}, {UPPER[0]}], chi_m in "
+                         f"[-pi/2, pi/2] rad")
+    return a
 
 
 def check_step_inputs(state0, route, targets, last, dtype=None):
@@ -284,7 +342,7 @@ def check_step_inputs(state0, route, targets, last, dtype=None):
 def smooth_sbmpc_step(state0, route, targets, last, land, buffered_land, *, weights: SmoothWeights = SmoothWeights(),
                       model: ShipModel = ShipModel(), settings: SmoothSettings = SmoothSettings(),
                       solver: SolverSettings | None = None, n_starts: int = 1, batch: str = "map",
-                      segment: int = 0) -> SmoothStep:
+                      segment: int = 0, previous=None) -> SmoothStep:
     """One control step of Smooth-SBMPC (§1.1): Alg. 1 → Alg. 3 → DOCP (27) from ``n_starts`` starts →
     safeguard, as one jitted computation (values never recompile; ``settings``, ``n_starts``, ``batch``, the
     static fields of ``solver`` and the array shapes do).
@@ -293,15 +351,22 @@ def smooth_sbmpc_step(state0, route, targets, last, land, buffered_land, *, weig
     buffered by ``settings.r_dom`` (:func:`psbmpc_jax.smooth.buffered_chart`, built once per chart) for the
     corridor.  ``solver``: :data:`DOCP_SOLVER` when None.  ``n_starts``: 1 (Ψ only) … 40; ``batch``: how the
     starts run, ``"map"`` (one after another, the faster on a CPU) or ``"vmap"``.  ``segment``: the active route
-    segment at τ₀.  Other arguments as :func:`psbmpc_jax.smooth.init_stage.init_stage`; every float input is
-    cast to ``state0``'s dtype (weights and model included)."""
+    segment at τ₀.  ``previous``: the previous update's kept sequence ``[N_mpc, 2]``, shifted to begin now
+    (:func:`shift_controls`), as start 1 (needs ``n_starts >= 2``); None: not used.  Other arguments as
+    :func:`psbmpc_jax.smooth.init_stage.init_stage`; every float input is cast to ``state0``'s dtype (weights and
+    model included)."""
     solver = DOCP_SOLVER if solver is None else solver
     check_step_options(settings, solver, n_starts, batch)
     state0, route, targets, last = check_step_inputs(state0, route, targets, last)
     dtype = state0.dtype
+    prev = None
+    if previous is not None:
+        if n_starts < 2:
+            raise ValueError(f"previous needs n_starts >= 2 (row 0 is always Ψ), got n_starts {n_starts}")
+        prev = Previous(jnp.asarray(check_previous(previous, settings.n_mpc), dtype), jnp.asarray(True))
     z = check_segment(segment, route.shape[0])
     land, buffered_land = (cast_tree(as_chart(c, name), dtype) for c, name in ((land, "land"),
                                                                             (buffered_land, "buffered_land")))
     return _step_jit(state0, route, targets, last, jnp.asarray(z, jnp.int32), land, buffered_land,
                      cast_tree(weights, dtype), cast_tree(model, dtype), solver, settings=settings, n_starts=n_starts,
-                     batch=batch)
+                     batch=batch, previous=prev)

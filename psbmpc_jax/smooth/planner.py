@@ -34,7 +34,7 @@ from ..nlp import SolverSettings
 from ..packing import pack_world, snap_origin
 from ..params import PlannerConfig
 from .corridor import buffered_chart, ring_arrays
-from .docp import DOCP_SOLVER, cast_tree, step_traced, check_step_options
+from .docp import DOCP_SOLVER, Previous, cast_tree, check_previous, check_step_options, step_traced
 from .init_stage import ShipModel, SmoothSettings, SmoothWeights, init_stage_traced
 
 #: The planner re-chooses its local origin when an own-ship is farther than this from it in north or east [m]
@@ -74,9 +74,9 @@ class SmoothPlan(NamedTuple):
 
 
 # ------------------------------------------------------------------------------------------ device side
-def _plan_core(state0, route, targets, last, segment, land, buffered, weights, model, solver, *,
+def _plan_core(state0, route, targets, last, segment, land, buffered, weights, model, solver, previous=None, *,
                settings: SmoothSettings, n_starts: int, batch: str, init_only: bool) -> SmoothPlan:
-    """One ship, traceable; positions in the local frame."""
+    """One ship, traceable; positions in the local frame; ``previous``: a :class:`Previous` or None."""
     n = settings.n_mpc
     if init_only:
         init = init_stage_traced(state0, route, targets, last, land, weights, model, settings, segment)
@@ -84,7 +84,7 @@ def _plan_core(state0, route, targets, last, segment, land, buffered, weights, m
         return SmoothPlan(init.controls[0], init.controls[:n], init.psi, cost, cost, jnp.zeros_like(cost),
                           jnp.asarray(True), jnp.asarray(0, jnp.int32), jnp.asarray(0, jnp.int32))
     st = step_traced(state0, route, targets, last, segment, land, buffered, weights, model, solver, settings=settings,
-               n_starts=n_starts, batch=batch)
+                     n_starts=n_starts, batch=batch, previous=previous)
     return _from_step(st)
 
 
@@ -93,18 +93,18 @@ def _from_step(st) -> SmoothPlan:
                       st.solver.status, st.iterations)
 
 
-def _plan_batch_core(states, route, targets, last, segments, land, buffered, weights, model, solver, *,
+def _plan_batch_core(states, route, targets, last, segments, land, buffered, weights, model, solver, previous=None, *,
                      settings: SmoothSettings, n_starts: int, batch: str, init_only: bool) -> SmoothPlan:
     """R ships in one computation: the whole step ``lax.map``-ed over the runs (``batch="map"``) or ``vmap``-ed
     (``batch="vmap"``).  On a CPU ``map`` is the faster: the init stage is compute-bound (``vmap`` over 8 runs
     measured no faster than 8 single steps), its ``lax.cond`` culling and fast paths turn into ``select`` (both
     branches) under ``vmap`` with per-run predicates, and vectorised solver loops run in lockstep
     (docs/solver.md)."""
-    one = lambda s, t, l, z: _plan_core(s, route, t, l, z, land, buffered, weights, model, solver,  # noqa: E731
-                                        settings=settings, n_starts=n_starts, batch=batch, init_only=init_only)
+    one = lambda s, t, l, z, p: _plan_core(s, route, t, l, z, land, buffered, weights, model, solver,  # noqa: E731
+                                           p, settings=settings, n_starts=n_starts, batch=batch, init_only=init_only)
     if batch == "map":
-        return lax.map(lambda a: one(*a), (states, targets, last, segments))
-    return jax.vmap(one)(states, targets, last, segments)
+        return lax.map(lambda a: one(*a), (states, targets, last, segments, previous))
+    return jax.vmap(one)(states, targets, last, segments, previous)
 
 
 _STATIC = ("settings", "n_starts", "batch", "init_only")
@@ -168,6 +168,9 @@ class SmoothSBMPCPlanner:
             :class:`SmoothSettings` (static); None gives the defaults.
         solver: the DOCP's :class:`~psbmpc_jax.nlp.SolverSettings`; None: :data:`psbmpc_jax.smooth.docp.DOCP_SOLVER`.
         n_starts: DOCP starts, 1 (Ψ only) … 40 (Ψ and the n_starts − 1 best constant behaviours at τ₀).
+        previous_start: start 1 of the DOCP is the previous update's kept sequence, shifted to begin now (the
+            ``previous`` argument of :meth:`plan` / :meth:`plan_batch`; a behaviour while there is none), the
+            receding-horizon warm start; needs ``n_starts >= 2`` and the DOCP (not ``init_only``).
         batch: ``"map"`` (default; independent solves — starts, and runs in :meth:`plan_batch` — one after
             another in one compiled call, the faster on a CPU) or ``"vmap"`` (vectorised).
         init_only: the "original SB-MPC" (the paper's Simulation 01): apply the init stage's first offsets; no
@@ -177,7 +180,7 @@ class SmoothSBMPCPlanner:
 
     def __init__(self, polygons=(), *, weights: SmoothWeights | None = None, model: ShipModel | None = None,
                  settings: SmoothSettings | None = None, solver: SolverSettings | None = None, n_starts: int = 4,
-                 batch: str = "map", init_only: bool = False, dtype: str = "float32"):
+                 batch: str = "map", init_only: bool = False, dtype: str = "float32", previous_start: bool = False):
         self.weights = SmoothWeights() if weights is None else weights
         self.model = ShipModel() if model is None else model
         self.settings = SmoothSettings() if settings is None else settings
@@ -189,6 +192,12 @@ class SmoothSBMPCPlanner:
         check_step_options(self.settings, self.solver, n_starts, batch)
         if not isinstance(init_only, (bool, np.bool_)):
             raise ValueError(f"init_only must be a bool, got {init_only!r}")
+        if not isinstance(previous_start, (bool, np.bool_)):
+            raise ValueError(f"previous_start must be a bool, got {previous_start!r}")
+        if previous_start and (init_only or n_starts < 2):
+            raise ValueError(f"previous_start needs the DOCP with n_starts >= 2 (it is start 1, after Ψ), got "
+                             f"init_only={init_only}, n_starts={n_starts!r}")
+        self.previous_start = bool(previous_start)
         if str(dtype) not in DTYPES:
             raise ValueError(f"dtype must be one of {DTYPES}, got {dtype!r}")
         if str(dtype) == "float64" and not jax.config.jax_enable_x64:
@@ -238,30 +247,48 @@ class SmoothSBMPCPlanner:
         return SmoothPlan(*(np.asarray(getattr(plan, k)) for k in ("apply", "controls")), psi,
                           *(np.asarray(getattr(plan, k)) for k in SmoothPlan._fields[3:]))
 
+    def _previous(self, previous, lead: tuple):
+        """``previous`` (None, or ``lead + [N_mpc, 2]`` with NaN rows for runs without one) as a
+        :class:`Previous` of device arrays, or None without ``previous_start``."""
+        n = self.settings.n_mpc
+        if not self.previous_start:
+            if previous is not None:
+                raise ValueError("previous is only used with previous_start=True")
+            return None
+        if previous is None:
+            return Previous(np.zeros((*lead, n, 2), self.dtype), np.zeros(lead, bool))
+        a = check_previous(previous, n, "previous", lead)
+        valid = ~np.all(np.isnan(a), axis=(-2, -1))
+        return Previous(np.asarray(np.nan_to_num(a), self.dtype), np.asarray(valid))
+
     def _statics(self):
         return dict(settings=self.settings, n_starts=self.n_starts, batch=self.batch, init_only=self.init_only)
 
     # -------------------------------------------------------------------------------------- API
-    def plan(self, state0, route, targets, last, segment=0) -> SmoothPlan:
+    def plan(self, state0, route, targets, last, segment=0, previous=None) -> SmoothPlan:
         """One ship: ``state0 [4]`` (north, east, course, speed), ``route [W >= 2, 2]``, ``targets [I, 4]``
         (north, east, course, speed; I may be 0), ``last [2]`` the offsets applied last (U_m, χ_m),
-        ``segment`` the active route segment.  Returns :class:`SmoothPlan` (host arrays, user's frame)."""
+        ``segment`` the active route segment, ``previous`` (``previous_start`` only) the previous plan's
+        ``controls [N_mpc, 2]`` shifted to begin now (:func:`psbmpc_jax.smooth.docp.shift_controls`) or None.
+        Returns :class:`SmoothPlan` (host arrays, user's frame)."""
         state0 = _array(state0, "state0", lambda s: s == (4,), "[4] (north, east, course, speed)")
         route = _array(route, "route", lambda s: len(s) == 2 and s[1] == 2 and s[0] >= 2, "[W >= 2, 2] waypoints")
         targets = _array(targets, "targets", lambda s: len(s) == 2 and s[1] == 4, "[I, 4] (north, east, course, "
                          "speed)")
         last = _array(last, "last", lambda s: s == (2,), "[2] (U_m, chi_m)")
         z = _segments(segment, None, route.shape[0], "segment")
+        prev = self._previous(previous, ())
         origin = self._origin_for(state0[:2])
         land, buf = self.charts(origin)
         s, r, t = self._local(state0, route, targets, origin)
         plan = _plan_jit(s, r, t, np.asarray(last, self.dtype), jnp.asarray(z), land, buf, self._w, self._m,
-                         self.solver, **self._statics())
+                         self.solver, prev, **self._statics())
         return self._finish(plan, origin)
 
-    def plan_batch(self, states, route, targets, last, segments) -> SmoothPlan:
+    def plan_batch(self, states, route, targets, last, segments, previous=None) -> SmoothPlan:
         """R runs in one jitted call: ``states [R, 4]``, ``targets [R, I, 4]``, ``last [R, 2]``, ``segments [R]``
-        (integers); ``route [W, 2]`` shared.  Returns :class:`SmoothPlan` with a leading ``[R]`` axis; row r equals
+        (integers), ``previous`` (``previous_start`` only; None or ``[R, N_mpc, 2]``, a run's rows NaN throughout
+        when it has no previous plan); ``route [W, 2]`` shared.  Returns :class:`SmoothPlan` with a leading ``[R]`` axis; row r equals
         ``plan(states[r], route, targets[r], last[r], segments[r])`` up to rounding."""
         states = _array(states, "states", lambda s: len(s) == 2 and s[1] == 4 and s[0] >= 1,
                         "[R >= 1, 4] (north, east, course, speed)")
@@ -271,11 +298,12 @@ class SmoothSBMPCPlanner:
                          f"[R = {R}, I, 4] (north, east, course, speed)")
         last = _array(last, "last", lambda s: s == (R, 2), f"[R = {R}, 2] (U_m, chi_m)")
         z = _segments(segments, R, route.shape[0], "segments")
+        prev = self._previous(previous, (R,))
         origin = self._origin_for(states[:, :2])
         land, buf = self.charts(origin)
         s, r, t = self._local(states, route, targets, origin)
         plan = _plan_batch_jit(s, r, t, np.asarray(last, self.dtype), jnp.asarray(z), land, buf, self._w, self._m,
-                               self.solver, **self._statics())
+                               self.solver, prev, **self._statics())
         return self._finish(plan, origin)
 
 
