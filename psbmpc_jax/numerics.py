@@ -36,3 +36,16 @@ def safe_sqrt(x):
     """sqrt with a finite gradient at 0 (double-where)."""
     pos = x > 0
     return jnp.where(pos, jnp.sqrt(jnp.where(pos, x, 1.0)), 0.0)
+
+
+def shift_controls(controls, steps: int):
+    """A kept sequence ``[..., N, 2]`` as seen ``steps`` steps later: rows ``steps…N−1``, then the last row
+    repeated (host NumPy; ``steps`` in [0, N]): a receding-horizon plan handed to the next update as a start."""
+    c = np.asarray(controls)
+    n = c.shape[-2]
+    if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or not 0 <= steps <= n:
+        raise ValueError(f"steps must be an integer in [0, {n}], got {steps!r}")
+    if steps == 0:
+        return c.copy()
+    tail = np.repeat(c[..., -1:, :], steps, axis=-2)
+    return np.concatenate([c[..., steps:, :], tail], axis=-2)

@@ -175,8 +175,10 @@ class Planner:
         ``refine``: a :class:`~psbmpc_jax.refine.RefineSettings` to refine the grid search's plan with the
         smooth DOCP (docs/refine.md); ``result.refined`` is then the :class:`~psbmpc_jax.refine.Refinement`
         (NumPy, trajectory in the user's frame; ``result.refine_time_s`` its wall time) and the next state holds its
-        first control (``result.refined.apply``).  ``None`` (default): the grid search alone, ``result.refined``
-        is None."""
+        first control (``result.refined.apply``); with ``refine.previous_start`` it also holds the refined
+        controls as ``warm_start``, the next refinement's start 1: shift them by the steps that pass before the
+        next plan (:func:`psbmpc_jax.numerics.shift_controls`; unshifted they are taken as planned now).
+        ``None`` (default): the grid search alone, ``result.refined`` is None."""
         if refine is not None:
             from .refine import RefineSettings
 
@@ -207,7 +209,8 @@ class Planner:
                            costs={k: float(v) for k, v in ref.costs.items()})
         result.refined = ref
         u, chi = (float(v) for v in np.asarray(ref.apply, float))
-        return result, PlannerState((min(max(u, 0.0), 1.0), min(max(chi, -np.pi), np.pi)))
+        warm = np.asarray(ref.controls, float) if refine.previous_start else None
+        return result, PlannerState((min(max(u, 0.0), 1.0), min(max(chi, -np.pi), np.pi)), warm)
 
 
 __all__ = ["Planner", "PlannerState", "PlanResult", "COST_TERMS", "RECENTRE_DISTANCE", "check_dtype"]

@@ -48,7 +48,7 @@ from .costs.colregs_fuzzy import (DEFAULT_E_CL, DEFAULT_EPS, DEFAULT_N_Y, RAD2DE
 from .costs.path import PathTerm
 from .evaluate import DEFAULT_TERMS, context, cost_terms, evaluate_arrays
 from .nlp import BATCH_MODES, SolverSettings, best_index, safeguard, solve_docp
-from .numerics import safe_sqrt, wrap_angle
+from .numerics import safe_sqrt, shift_controls, wrap_angle
 from .ownship import Path, Trajectory, los_rollout, make_path, maneuver_index
 from .packing import BehaviourArrays, SolveInputs
 from .params import Params, PlannerConfig
@@ -282,6 +282,10 @@ class RefineSettings:
         pc_capacity: (time, obstacle, scenario) points passing the σ-shortcut that the collision term sends
             through the estimator at once (:class:`FastCollisionTerm`; more: several chunks), integer >= 1
             (static).
+        previous_start: start 1 is the previous refinement's per-step controls, ``PlannerState.warm_start``
+            ``[N, 2]`` of the state passed to the solve, already shifted to begin now (:func:`shift_controls`);
+            the grid's choice stays start 0.  A state without one (None, or NaN throughout) uses the grid's
+            starts.  Needs ``n_starts >= 2`` (static).
     """
 
     n_starts: int = 4
@@ -294,6 +298,7 @@ class RefineSettings:
     fis_e_cl: float = DEFAULT_E_CL
     fis_n_y: int = DEFAULT_N_Y
     pc_capacity: int = 256
+    previous_start: bool = False
 
     def __post_init__(self):
         def int_field(name, lo):
@@ -318,6 +323,12 @@ class RefineSettings:
         int_field("block", 1)
         int_field("fis_n_y", 2)
         int_field("pc_capacity", 1)
+        if not isinstance(self.previous_start, (bool, np.bool_)):
+            raise ValueError(f"RefineSettings.previous_start must be a bool, got {self.previous_start!r}")
+        object.__setattr__(self, "previous_start", bool(self.previous_start))
+        if self.previous_start and self.n_starts < 2:
+            raise ValueError(f"RefineSettings.previous_start needs n_starts >= 2 (start 0 is the grid's choice), "
+                             f"got n_starts {self.n_starts}")
         if self.batch not in BATCH_MODES:
             raise ValueError(f"RefineSettings.batch must be one of {BATCH_MODES}, got {self.batch!r}")
         if self.colregs not in COLREGS_MODES:
@@ -351,7 +362,7 @@ class RefineSettings:
     def static(self, config: PlannerConfig) -> tuple:
         """The fields that shape the compiled refinement (part of its jit key)."""
         return (self.n_starts, self.batch, self.n_refine(config), self.colregs, self.block, self.fis_n_y,
-                self.pc_capacity)
+                self.pc_capacity, self.previous_start)
 
 
 class Refinement(NamedTuple):
@@ -367,9 +378,10 @@ class Refinement(NamedTuple):
         used_warm: the safeguard replaced the solver's result by the best warm start.
         status: solver status of the best start (0 converged, 1 max-iter, 2 infeasible, 3 non-finite).
         iterations: L-BFGS iterations of the best start (summed over outer iterations).
-        start_index: which warm start (0 = the grid's choice, 1 = its runner-up, ...) the kept controls come
-            from (the best warm start's when ``used_warm``).
-        behaviour: the behaviour-table index of that start.
+        start_index: which warm start (0 = the grid's choice, 1 = its runner-up, ...; with ``previous_start``
+            and a previous plan, 1 = that plan and the runner-ups from 2) the kept controls come from (the best
+            warm start's when ``used_warm``).
+        behaviour: the behaviour-table index of that start (−1: the previous-plan start, ``previous_start``).
         grid_cost: the ORIGINAL (grid search's) cost of ``controls``: the objective with the grid's terms,
             ``smooth=False`` (per-step form of the path term).
         warm_grid_cost: the same for the best warm start.
@@ -513,9 +525,9 @@ def box(behaviours: BehaviourArrays):
 
 
 # ------------------------------------------------------------------------------------------ refine
-def _refine(inputs, best, last_offsets, params, samples, evaluation, solver, path_eps, fis_e_cl, grid_terms, *,
-            config, static):
-    n_starts, batch, n_ref, colregs, block, fis_n_y, pc_capacity = static
+def _refine(inputs, best, last_offsets, params, samples, evaluation, solver, path_eps, fis_e_cl, grid_terms,
+            previous=None, *, config, static):
+    n_starts, batch, n_ref, colregs, block, fis_n_y, pc_capacity, _ = static
     inputs = jax.tree.map(jnp.asarray, inputs)
     dtype = inputs.own.state.dtype
     n = config.n_steps
@@ -528,6 +540,11 @@ def _refine(inputs, best, last_offsets, params, samples, evaluation, solver, pat
 
     idx = warm_indices(best, evaluation, inputs, params, config, n_starts)                    # [S]
     warm = jax.vmap(lambda o: behaviour_controls(o, params, config))(inputs.behaviours.offsets[idx])   # [S, N, 2]
+    if previous is not None:                   # (controls [N, 2], valid): start 1, the grid's runner-ups after it
+        controls, valid = previous
+        shifted = jnp.concatenate([warm[:1], controls.astype(dtype)[None], warm[1:-1]], axis=0)
+        warm = jnp.where(valid, shifted, warm)
+        idx = jnp.where(valid, jnp.concatenate([idx[:1], jnp.full((1,), -1, idx.dtype), idx[1:-1]]), idx)
     n_blk = -(-n_ref // block)
     z0 = warm[:, 0:n_ref:block]                                                              # [S, n_blk, 2]
     tails = warm[:, n_ref:]
@@ -595,9 +612,36 @@ def refine(inputs: SolveInputs, plan: Plan, state: PlannerState, params: Params,
                          f"{settings.n_starts}")
     static = settings.static(config)                       # validates the horizon against the config
     dtype = np.dtype(config.dtype)
+    previous = None
+    if settings.previous_start:
+        previous = previous_plan(state.warm_start, config.n_steps, dtype)
+    elif state.warm_start is not None and not isinstance(state.warm_start, jax.core.Tracer):
+        raise ValueError("PlannerState.warm_start is only used with RefineSettings(previous_start=True)")
     return _refine_jit(inputs, jnp.asarray(plan.best, jnp.int32), jnp.asarray(state.last_offsets, dtype), params,
                        samples, evaluation, settings.solver, jnp.asarray(settings.path_eps, dtype),
-                       jnp.asarray(settings.fis_e_cl, dtype), terms, config=config, static=static)
+                       jnp.asarray(settings.fis_e_cl, dtype), terms, previous, config=config, static=static)
+
+
+def previous_plan(warm_start, n: int, dtype):
+    """``PlannerState.warm_start`` as the previous-plan start ``(controls [n, 2], valid)``: None or NaN
+    throughout -> not valid; otherwise finite per-step (speed factor, course offset [rad]) controls ``[n, 2]``
+    with speed factors in [0, 1] and |offset| <= pi (``ValueError`` naming the field)."""
+    if warm_start is None:
+        return np.zeros((n, 2), dtype), np.asarray(False)
+    a = np.asarray(warm_start)
+    if a.dtype.kind not in "iuf" or a.shape != (n, 2):
+        raise ValueError(f"PlannerState.warm_start must be the previous plan's per-step controls [{n}, 2] "
+                         f"(speed factor, course offset rad), got {a.dtype} of shape {a.shape}")
+    a = a.astype(np.float64)
+    if np.all(np.isnan(a)):
+        return np.zeros((n, 2), dtype), np.asarray(False)
+    if not np.all(np.isfinite(a)):
+        raise ValueError("PlannerState.warm_start must be finite (NaN throughout means: no previous plan)")
+    if np.any(a[:, 0] < 0) or np.any(a[:, 0] > 1) or np.any(np.abs(a[:, 1]) > np.pi + 1e-12):
+        raise ValueError("PlannerState.warm_start must hold speed factors in [0, 1] and course offsets in "
+                         "[-pi, pi] rad")
+    return a.astype(dtype), np.asarray(True)
+
 
 
 refine.jitted = _refine_jit
@@ -606,4 +650,4 @@ refine.jitted = _refine_jit
 __all__ = ["RefineSettings", "Refinement", "refine", "smooth_terms", "ScenarioFuzzyColregsTerm", "SmoothPathTerm",
            "DEFAULT_SOLVER", "COLREGS_MODES", "refine_data", "smooth_costs", "rollout", "full_controls",
            "behaviour_controls", "warm_indices", "box", "problem", "RefineData", "FastCollisionTerm", "term_costs",
-           "grid_terms_fast", "fis_mu"]
+           "grid_terms_fast", "fis_mu", "previous_plan"]

@@ -200,7 +200,8 @@ class RefineSpec:
     how long each refined control is held [s] (``mpc.refine.block_s``, a multiple of ``config.dt``; None: the
     MPC update period, so the refined controls change no faster than the planner re-plans);
     ``fis_e_cl`` / ``fis_n_y``: ``mpc.fis.e_cl_m`` / ``n_y`` when the file gives them (None: the refinement's
-    own defaults)."""
+    own defaults); ``previous_start``: start 1 is the previous refinement, shifted to now (needs n_starts >= 2;
+    default: on whenever n_starts >= 2, docs/refine.md "Closed loop")."""
 
     n_starts: int = 4
     horizon: float | None = None
@@ -208,6 +209,7 @@ class RefineSpec:
     block: float | None = None
     fis_e_cl: float | None = None
     fis_n_y: int | None = None
+    previous_start: bool = True
 
 
 #: Numeric fields of :class:`psbmpc_jax.costs.informed.InformedSbmpcTerm` that ``mpc.informed.term`` may set
@@ -409,7 +411,7 @@ _SMOOTH_KEYS = ("T_init_s", "T_mpc_s", "dt_s", "corridor_half_width_m", "domain_
                 "n_starts", "previous_start")
 _FIS_KEYS = ("d_cl_m", "e_cl_m", "eps", "n_y", "completion")
 _SOLVER_KEYS = ("max_outer", "max_inner", "tol", "method")
-_REFINE_KEYS = ("n_starts", "horizon_s", "colregs", "block_s")
+_REFINE_KEYS = ("n_starts", "horizon_s", "colregs", "block_s", "previous_start")
 _TERMINALS = ("full", "position", "soft")
 _COMPLETIONS = ("default_false", "literal")
 _SOLVER_METHODS = ("lbfgs", "adam")
@@ -994,6 +996,14 @@ def _refine_spec(d, config: PlannerConfig) -> RefineSpec:
             raise ValueError(f"{w}.block_s ({b:g}) must be <= the refined horizon ({limit:g} s)")
         multiple_of(b, config.dt, f"{w}.block_s", "the PSB-MPC step mpc.config dt")
         kw["block"] = b
+    n_starts = kw.get("n_starts", RefineSpec.n_starts)
+    if "previous_start" in d:
+        kw["previous_start"] = _bool(d["previous_start"], f"{w}.previous_start")
+        if kw["previous_start"] and n_starts < 2:
+            raise ValueError(f"{w}.previous_start needs {w}.n_starts >= 2 (start 0 is the grid's choice), got "
+                             f"n_starts {n_starts}")
+    else:
+        kw["previous_start"] = n_starts >= 2          # the default: on whenever there is a second start
     return RefineSpec(**kw)
 
 

@@ -333,3 +333,53 @@ def test_bench_refine_preset_is_accepted_and_checked():
             build_plan(ap.parse_args(["--preset", "refine", *extra]))
     assert {c[0] for c in REFINE_CASES} == {"nidelva", "nidelva_T60", "paper000"}
     assert any(c[3] == 1 for c in REFINE_CASES) and any(c[3] == 16 and c[4] == "vmap" for c in REFINE_CASES)
+
+
+def test_previous_plan_start():
+    """``previous_start``: the previous refinement (``PlannerState.warm_start``) is start 1.  Without one (None
+    or NaN throughout) the result equals the plain refinement; re-refining a situation from its own refined plan
+    ends no higher (the plan is a warm start, and the safeguard keeps the lowest of them); the warm cost is the
+    lowest over the grid's choice, the previous plan and the runner-ups.  One compilation for all of it."""
+    s = SETTINGS.replace(n_starts=3, previous_start=True)
+    inputs, state, params, samples, plan, ev = prepared(random_situation(1, T=T))
+    plain = refine(inputs, plan, state, params, samples, CFG, SETTINGS.replace(n_starts=3), evaluation=ev)
+    n0 = None
+    for none in (None, np.full((N, 2), np.nan)):
+        r = refine(inputs, plan, PlannerState(state.last_offsets, none), params, samples, CFG, s, evaluation=ev)
+        np.testing.assert_allclose(np.asarray(r.controls), np.asarray(plain.controls), rtol=0, atol=1e-12)
+        assert int(r.behaviour) >= 0
+        n0 = refine.jitted._cache_size() if n0 is None else n0
+    prev = np.asarray(plain.controls)
+    again = refine(inputs, plan, PlannerState(state.last_offsets, prev), params, samples, CFG, s, evaluation=ev)
+    assert refine.jitted._cache_size() == n0                              # a previous plan is a value
+    assert finite(again)
+    assert float(again.cost) <= float(plain.cost) * (1 + 1e-12) + 1e-12
+    f_prev = float(smooth_f(jnp.asarray(prev), inputs, state, params, samples, settings=s))
+    assert float(again.warm_cost) <= f_prev * (1 + 1e-12)
+    # a plan from elsewhere (e.g. the last one, shifted): start 1, index -1 when it is the kept one
+    from psbmpc_jax.numerics import shift_controls
+
+    rng = np.random.default_rng(0)
+    other = np.stack([rng.uniform(0.5, 1.0, N), rng.uniform(-0.5, 0.5, N)], axis=-1)
+    r = refine(inputs, plan, PlannerState(state.last_offsets, shift_controls(other, 3)), params, samples, CFG, s,
+               evaluation=ev)
+    assert finite(r) and float(r.cost) <= float(r.warm_cost) * (1 + 1e-12)
+    assert (int(r.behaviour) == -1) == (int(r.start_index) == 1)
+
+
+@pytest.mark.parametrize("warm_start, settings, match", [
+    (np.zeros((N, 2)), SETTINGS, r"warm_start is only used with RefineSettings\(previous_start=True\)"),
+    (np.zeros((N - 1, 2)), SETTINGS.replace(previous_start=True), r"warm_start must be .*\[40, 2\]"),
+    (np.tile([1.5, 0.0], (N, 1)), SETTINGS.replace(previous_start=True), "speed factors in"),
+    (np.where(np.arange(N)[:, None] == 3, np.nan, np.full((N, 2), 0.5)), SETTINGS.replace(previous_start=True),
+     "finite"),
+])
+def test_bad_previous_plan_rejected(warm_start, settings, match):
+    inputs, state, params, samples, plan, ev = prepared(random_situation(0, T=T))
+    with pytest.raises(ValueError, match=match):
+        refine(inputs, plan, PlannerState(state.last_offsets, warm_start), params, samples, CFG, settings,
+               evaluation=ev)
+    with pytest.raises(ValueError, match="RefineSettings.previous_start"):
+        RefineSettings(n_starts=1, previous_start=True)
+    with pytest.raises(ValueError, match="RefineSettings.previous_start"):
+        RefineSettings(previous_start=1)

@@ -89,14 +89,15 @@ def test_method_keys_parse_into_the_spec():
                      "k_ntp": 2.5, "terminal": "soft", "n_starts": 2, "previous_start": True},
              fis={"d_cl_m": 35, "e_cl_m": 4, "eps": 1e-5, "n_y": 101, "completion": "literal"},
              solver={"max_outer": 7, "max_inner": 9, "tol": 1e-4, "method": "adam"},
-             refine={"n_starts": 3, "horizon_s": 10, "colregs": "none"})
+             refine={"n_starts": 3, "horizon_s": 10, "colregs": "none", "previous_start": True})
     m = scenario_from_dict(d).mpc
     assert m.method == "smooth_sbmpc"
     assert m.smooth == SmoothSpec(T_init=30.0, T_mpc=10.0, dt=0.5, corridor_half_width=12.0, domain_radius=3.0,
                                   k_ntp=2.5, terminal="soft", n_starts=2, previous_start=True)
     assert m.fis == FisSpec(d_cl=35.0, e_cl=4.0, eps=1e-5, n_y=101, completion="literal")
     assert m.solver == SolverSpec(max_outer=7, max_inner=9, tol=1e-4, method="adam")
-    assert m.refine == RefineSpec(n_starts=3, horizon=10.0, colregs="none", fis_e_cl=4.0, fis_n_y=101)
+    assert m.refine == RefineSpec(n_starts=3, horizon=10.0, colregs="none", fis_e_cl=4.0, fis_n_y=101,
+                                  previous_start=True)
 
 
 def test_defaults_are_the_method_modules_defaults():
@@ -146,6 +147,10 @@ BAD = [
     ("n_starts", with_("mpc.smooth.n_starts", 0), r"mpc.smooth.n_starts must be an integer >= 1, got 0"),
     ("n_starts_float", with_("mpc.smooth.n_starts", 2.0), r"mpc.smooth.n_starts must be an integer >= 1, got 2.0"),
     ("k_ntp", with_("mpc.smooth.k_ntp", "high"), r"mpc.smooth.k_ntp must be a finite number, got 'high'"),
+    ("refine_previous_start", with_("mpc.refine", {"n_starts": 1, "previous_start": True}),
+     r"mpc.refine.previous_start needs mpc.refine.n_starts >= 2 \(start 0 is the grid's choice\), got n_starts 1"),
+    ("refine_previous_start_type", with_("mpc.refine", {"previous_start": "on"}),
+     r"mpc.refine.previous_start must be true or false"),
     ("previous_start", with_("mpc.smooth.previous_start", "yes"), r"mpc.smooth.previous_start must be true or false"),
     ("previous_start_one_start", with_("mpc.smooth.previous_start", True),
      r"mpc.smooth.previous_start needs mpc.smooth.n_starts >= 2 \(start 0 is always the trajectory Ψ\), got "
@@ -414,6 +419,39 @@ class FakeRefinement(NamedTuple):
 class FakeRefineSettings:
     def __init__(self, **kw):
         self.kw = kw
+
+
+class FakePreviousSettings(FakeRefineSettings):
+    def __init__(self, **kw):
+        super().__init__(**kw)
+        self.previous_start = kw.get("previous_start", False)
+
+
+def test_refine_previous_start_hands_the_shifted_refinement_to_the_next_update(monkeypatch):
+    """mpc.refine.previous_start: each refined ship's next solve state carries its last refined controls,
+    shifted by the update period (2 s = 4 steps of config.dt 0.5 s); the first update gets NaN (none)."""
+    seen = []
+
+    def fake_refine(inputs, plan, state, params, samples, config, settings, evaluation=None):
+        seen.append(None if state.warm_start is None else np.array(state.warm_start))
+        j = np.arange(40.0)
+        controls = np.stack([1.0 - 0.01 * j, 0.01 * j + 0.1 * len(seen)], axis=-1)
+        return FakeRefinement(controls, controls[0], 1.0, 2.0, 0.0, False, 0, 7, 0)
+
+    monkeypatch.setattr(colav, "_refine_function", lambda: (fake_refine, FakePreviousSettings))
+    d = tiny(method="psbmpc_refine", refine={"n_starts": 2, "previous_start": True})
+    simulate(scenario_from_dict(d), batch="loop")
+    assert len(seen) == 4 and all(w is not None and w.shape == (40, 2) for w in seen)
+    assert np.isnan(seen[0]).all() and np.isnan(seen[1]).all()            # update 0, runs 0 and 1: none yet
+    for run in (0, 1):
+        j = np.arange(40.0)
+        made = np.stack([1.0 - 0.01 * j, 0.01 * j + 0.1 * (run + 1)], axis=-1)       # what update 0 returned
+        np.testing.assert_allclose(seen[2 + run], np.concatenate([made[4:], np.repeat(made[-1:], 4, axis=0)]))
+    # the default: on with two or more starts, off with one; off when the file says so
+    for refine, on in (({"n_starts": 2}, True), ({"n_starts": 1}, False), ({"previous_start": False}, False), ({}, True)):
+        sc = scenario_from_dict(tiny(method="psbmpc_refine", refine=refine))
+        assert sc.mpc.refine.previous_start is on
+        assert colav.refine_settings(sc.mpc, FakeRefineSettings).kw.get("previous_start", False) is on
 
 
 def test_refine_path_applies_the_per_step_controls(monkeypatch):

@@ -46,6 +46,7 @@ import numpy as np
 
 from ..costs.base import term_names
 from ..evaluate import DEFAULT_TERMS
+from ..numerics import shift_controls
 from ..packing import SHARED_AXES, pack, stack
 from ..solve import Plan, PlannerState, solve, solve_arrays
 
@@ -197,6 +198,20 @@ class GridGroup:
             fn, settings_cls = _refine_function()
             refine = (fn, refine_settings(mpc, settings_cls))
         self.solver = _Solver(mode, mpc.config, params, samples, refine, self.terms)
+        self.previous_start = bool(refine and getattr(refine[1], "previous_start", False))
+        self._previous: dict = {}                  # (run, ship) -> (t [s], refined controls [N, 2])
+
+    def _warm_start(self, loop, r: int, i: int, k: int):
+        """The previous refinement of ship ``i`` in run ``r`` shifted to now (NaN: none, or past its horizon);
+        None without ``previous_start``."""
+        if not self.previous_start:
+            return None
+        n = self.mpc.config.n_steps
+        if (r, i) not in self._previous:
+            return np.full((n, 2), np.nan)
+        t_prev, controls = self._previous[(r, i)]
+        steps = int(round((float(loop.t[k]) - t_prev) / self.mpc.config.dt))
+        return np.full((n, 2), np.nan) if steps > n else shift_controls(controls, steps)
 
     @property
     def snapshots(self) -> bool:
@@ -235,7 +250,7 @@ class GridGroup:
             keep_job = None
         packed = [pack(loop.situation(r, i, k, n_ps=self.n_ps, informed=self.informed), mpc.behaviours, config,
                        grid=loop.grid) for r, i in jobs]
-        states = [PlannerState((loop.u_c[r, i], loop.chi_off[r, i])) for r, i in jobs]
+        states = [PlannerState((loop.u_c[r, i], loop.chi_off[r, i]), self._warm_start(loop, r, i, k)) for r, i in jobs]
         keep = jobs.index(keep_job) if keep_job in jobs else None
         refine_jobs = [n for n, (_, i) in enumerate(jobs) if i in self.refine_ships]
         t0 = time.perf_counter()
@@ -249,6 +264,9 @@ class GridGroup:
                         kept_job=keep_job if keep is not None else None)
         if refined:
             out = _with_refinements(out, refined, mpc.config.dt)
+            if self.previous_start:
+                for n, ref in refined.items():
+                    self._previous[jobs[n]] = (float(loop.t[k]), np.asarray(ref.controls, float).reshape(-1, 2))
         return out
 
 
@@ -256,8 +274,9 @@ def refine_settings(mpc, settings_cls):
     """``RefineSettings`` from the scenario's ``mpc.refine`` and, where the file gives them, ``mpc.solver`` (over
     RefineSettings' default solver) and ``mpc.fis.e_cl_m`` / ``n_y`` (the refinement's FIS edge width and output
     grid).  ``block``: ``mpc.refine.block_s`` in PSB-MPC steps, by default the MPC update period (one refined
-    control per re-plan: per-step controls jittered in closed loop, docs/refine.md "Closed loop").  The rest
-    (``batch``, ``path_eps``) are RefineSettings' defaults."""
+    control per re-plan: per-step controls jittered in closed loop, docs/refine.md "Closed loop");
+    ``previous_start`` when ``mpc.refine.previous_start`` is on.  The rest (``batch``, ``path_eps``) are
+    RefineSettings' defaults."""
     from ..nlp import SolverSettings
 
     r = mpc.refine
@@ -268,6 +287,8 @@ def refine_settings(mpc, settings_cls):
                                            **mpc.solver.given())
     hold = r.block if r.block is not None else min(mpc.period, r.horizon or mpc.config.T)
     kw["block"] = max(1, int(round(hold / mpc.config.dt)))
+    if r.previous_start:
+        kw["previous_start"] = True
     return settings_cls(n_starts=r.n_starts, horizon=r.horizon, colregs=r.colregs, **kw)
 
 
@@ -350,8 +371,6 @@ class SmoothGroup:
     def _shifted_previous(self, t: float):
         if not self.previous_start or self._previous is None:
             return None
-        from ..smooth.docp import shift_controls
-
         t_prev, controls = self._previous
         steps = int(round((t - t_prev) / self.step))
         if steps > controls.shape[1]:

@@ -35,7 +35,7 @@ import numpy as np
 from ..costs.manoeuvring import gamma_sequence
 from ..costs.sbmpc import sbmpc_costs
 from ..nlp import BATCH_MODES, SolverResult, SolverSettings, safeguard, solve_docp, solve_multistart
-from ..numerics import wrap_angle
+from ..numerics import shift_controls, wrap_angle
 from .corridor import Corridor, corridor_kernel, cross_track_residuals
 from .init_stage import (InitResult, ShipModel, SmoothSettings, SmoothWeights, init_stage_traced, behaviour_table,
                          check_segment, gamma_weights, pair_kwargs, rollout_controls, route_path, target_predictions)
@@ -199,19 +199,6 @@ def warm_starts(init: InitResult, n_starts: int, n: int, previous: Previous | No
         return starts
     with_previous = jnp.concatenate([warm[None], previous.controls.astype(warm.dtype)[None], const[:-1]], axis=0)
     return jnp.where(previous.valid, with_previous, starts)
-
-
-def shift_controls(controls, steps: int):
-    """A kept sequence ``[..., N, 2]`` as seen ``steps`` steps later: rows ``steps…N−1``, then the last row
-    repeated (host NumPy; ``steps`` in [0, N])."""
-    c = np.asarray(controls)
-    n = c.shape[-2]
-    if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or not 0 <= steps <= n:
-        raise ValueError(f"steps must be an integer in [0, {n}], got {steps!r}")
-    if steps == 0:
-        return c.copy()
-    tail = np.repeat(c[..., -1:, :], steps, axis=-2)
-    return np.concatenate([c[..., steps:, :], tail], axis=-2)
 
 
 def cast_tree(tree, dtype):
