@@ -12,14 +12,15 @@ Variants (each the scenario's Smooth-SBMPC with one change; ``sbmpc_init`` is th
 * ``position``: terminal equality on x, y only;  ``soft``: a quadratic terminal penalty instead;
 * ``soft_previous``: both;
 * ``full_gamma_x10``: Γ's course- and speed-change weights Δ_χ, Δ_U ×10 (both stages: a sensitivity check of
-  the proposed weights, SPEC_SEEDS §1.8 gives none; not a proposed setting).
+  the proposed weights, SPEC_SEEDS §1.8 gives none; not a proposed setting);
+* ``sbmpc_init_gamma_x10``: the init stage alone with the same weights (the fair baseline of the line above).
 
 Per variant: collisions, groundings, shore clearance, mean |course rate|, path length (as
 ``scripts/compare_methods.py``), and the mechanism: the total variation of the applied course offset, the
 jump of the terminal target Ψ_{N_mpc} between consecutive updates (update m's Ψ at t_m + T_mpc against update
 m + 1's prediction of the same instant) and how much of the applied-offset variation falls in updates whose
 terminal target jumped by more than 0.5 m.  Writes ``ablation.json`` (with commit, versions, device) under
-``--out``.
+``--out``; variants already in that file and not run again are kept (each row records its commit).
 """
 
 from __future__ import annotations
@@ -45,6 +46,7 @@ VARIANTS = {
     "soft": ("smooth_sbmpc", {"terminal": "soft"}, 1.0),
     "soft_previous": ("smooth_sbmpc", {"terminal": "soft", "previous_start": True}, 1.0),
     "full_gamma_x10": ("smooth_sbmpc", {}, 10.0),
+    "sbmpc_init_gamma_x10": ("sbmpc_init", {}, 10.0),
 }
 JUMP_M = 0.5
 
@@ -100,10 +102,12 @@ def main(argv=None) -> int:
             return plan
 
     colav.smooth_planner_class = lambda: Recording
+    started_at = commit()                  # the code this process imported (later edits do not change it)
 
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    rows = {}
+    old = out / "ablation.json"
+    rows = {k: v for k, v in json.loads(old.read_text())["variants"].items() if k not in names} if old.exists() else {}
     for name in names:
         method, changes, scale["x"] = VARIANTS[name]
         sc = load_scenario(SCENARIO, method=method)
@@ -126,6 +130,7 @@ def main(argv=None) -> int:
             "path_length_m_mean": float(np.mean([x["path_length_m"] for x in m])),
             "mechanism": mechanism(psi, ctl, int(round(sc.mpc.smooth.T_mpc / sc.mpc.smooth.dt))),
             "wall_s": round(wall, 1),
+            "commit": started_at,
         }
         r = rows[name]
         print(f"{name}: course rate {r['mean_abs_course_rate_deg_s']['mean']:.3f} deg/s, clearance "
@@ -133,8 +138,9 @@ def main(argv=None) -> int:
               f"{r['collisions']}, groundings {r['groundings']}, offset TV "
               f"{r['mechanism']['applied_offset_total_variation_deg_per_run']:.0f} deg/run, wall {wall:.0f} s",
               flush=True)
-        doc = {"scenario": SCENARIO, "runs": args.runs, "seed": args.seed, "variants": rows,
-               "commit": commit(), "device": str(jax.devices()[0]), "platform": platform.platform(),
+        doc = {"scenario": SCENARIO, "runs": args.runs, "seed": args.seed,
+               "variants": {k: rows[k] for k in VARIANTS if k in rows},
+               "commit": started_at, "device": str(jax.devices()[0]), "platform": platform.platform(),
                "versions": {"python": sys.version.split()[0], "jax": jax.__version__, "numpy": np.__version__},
                "command": "python scripts/smooth_000_ablation.py " + " ".join(argv if argv is not None else sys.argv[1:]),
                "utc": dt.datetime.now(dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")}
