@@ -198,20 +198,35 @@ class ScenarioFuzzyColregsTerm:
         return TermValue(params.kappa * jnp.sum(ctx.scen_weight[None] * m, axis=(1, 2)), {"mu_fis": m})
 
 
-@cost_term
+PATH_CHANGES = ("grid", "per_step")
+
+
+@cost_term(static=("n_maneuvers",))
 class SmoothPathTerm:
     """The path cost H_p of :class:`psbmpc_jax.costs.path.PathTerm` with |Δu| replaced by
     √(Δu² + eps²) − eps (eps = 0: the exact term; the difference is at most K_du·eps).  The port/starboard
-    weights switch where their quadratic vanishes, so the rest is already C¹."""
+    weights switch where their quadratic vanishes, so the rest is already C¹.
+
+    ``n_maneuvers`` (static): None weighs the changes as ``PathTerm`` does for the controls it is given (the
+    change from the last applied offsets by 1/n, the n − 1 step-to-step changes summed by 1/(n − 1), n the
+    number of controls: per-step controls make every change n/n_M times cheaper than in the grid search).  An
+    integer n_M (the grid's maneuver count) weighs them as the grid search does: the first change by 1/n_M, the
+    later ones summed by 1/max(n_M − 1, 1).  The deviation part Σ f / n stays an average over the controls.  A
+    per-step sequence that holds a behaviour's n_M maneuvers for equal numbers of steps then costs exactly that
+    behaviour's H_p (eps = 0; docs/refine.md, C-R-3)."""
 
     name = "path"
     PARAMS = ("K_u", "K_du", "K_chi_stbd", "K_chi_port", "K_dchi_stbd", "K_dchi_port")
     smooth = True
 
     eps: float = 1e-2
+    n_maneuvers: int | None = None
 
     def __post_init__(self):
         check_param("SmoothPathTerm.eps", self.eps, lo=0.0)
+        m = self.n_maneuvers
+        if m is not None and (isinstance(m, bool) or not isinstance(m, (int, np.integer)) or m < 1):
+            raise ValueError(f"SmoothPathTerm.n_maneuvers must be None or an integer >= 1, got {m!r}")
 
     def __call__(self, ctx: Context, params, config, samples) -> TermValue:
         p, eps = params, self.eps
@@ -227,20 +242,23 @@ class SmoothPathTerm:
         offsets, last = ctx.offsets, ctx.last_offsets
         u, chi = offsets[..., 0], offsets[..., 1]
         n_m = offsets.shape[1]
-        value = (jnp.sum(f(u, chi), axis=1) + h(u[:, 0], chi[:, 0], last[0], last[1])) / n_m
+        first_w, later_w = ((1.0 / n_m, 1.0 / max(n_m - 1, 1)) if self.n_maneuvers is None else
+                            (1.0 / self.n_maneuvers, 1.0 / max(self.n_maneuvers - 1, 1)))
+        value = jnp.sum(f(u, chi), axis=1) / n_m + h(u[:, 0], chi[:, 0], last[0], last[1]) * first_w
         if n_m > 1:
-            value = value + jnp.sum(h(u[:, 1:], chi[:, 1:], u[:, :-1], chi[:, :-1]), axis=1) / (n_m - 1)
+            value = value + jnp.sum(h(u[:, 1:], chi[:, 1:], u[:, :-1], chi[:, :-1]), axis=1) * later_w
         return TermValue(value)
 
 
 def smooth_terms(terms=DEFAULT_TERMS, colregs: str = "fis", path_eps: float = 1e-2, fis_e_cl: float = DEFAULT_E_CL,
-                 fis_n_y: int = DEFAULT_N_Y, pc_capacity: int = 256) -> tuple:
+                 fis_n_y: int = DEFAULT_N_Y, pc_capacity: int = 256, path_maneuvers: int | None = None) -> tuple:
     """The refinement's smooth objective terms from the grid search's ``terms``: every Boolean
     :class:`~psbmpc_jax.costs.colregs.ColregsTerm` replaced by :class:`ScenarioFuzzyColregsTerm`
     (``colregs="fis"``) or dropped (``"none"``), every :class:`~psbmpc_jax.costs.path.PathTerm` by
     :class:`SmoothPathTerm`, every :class:`~psbmpc_jax.costs.collision.CollisionTerm` by
     :class:`FastCollisionTerm` (the same cost; evaluated through the quadrature estimator by the refinement);
-    other terms (grounding, custom terms) are kept as they are."""
+    other terms (grounding, custom terms) are kept as they are.  ``path_maneuvers``: the
+    :class:`SmoothPathTerm`'s ``n_maneuvers`` (None: per-control change weights)."""
     out = []
     for t in check_terms(terms):
         if isinstance(t, CollisionTerm):
@@ -249,7 +267,7 @@ def smooth_terms(terms=DEFAULT_TERMS, colregs: str = "fis", path_eps: float = 1e
             if colregs == "fis":
                 out.append(ScenarioFuzzyColregsTerm(e_cl=fis_e_cl, n_y=fis_n_y))
         elif isinstance(t, PathTerm):
-            out.append(SmoothPathTerm(eps=path_eps))
+            out.append(SmoothPathTerm(eps=path_eps, n_maneuvers=path_maneuvers))
         else:
             out.append(t)
     return check_terms(out)
@@ -282,6 +300,11 @@ class RefineSettings:
         pc_capacity: (time, obstacle, scenario) points passing the σ-shortcut that the collision term sends
             through the estimator at once (:class:`FastCollisionTerm`; more: several chunks), integer >= 1
             (static).
+        path_changes: how the smooth path term weighs control changes (static): ``"grid"`` (default) as the
+            grid search weighs its maneuvers' (first change 1/n_M, later ones 1/(n_M − 1), n_M the behaviour
+            table's maneuver count), so a change costs the same in both stages; ``"per_step"`` by the number of
+            refined controls (``PathTerm``'s formula applied to per-step controls: each change n/n_M times
+            cheaper; the form before C-R-3).
         previous_start: start 1 is the previous refinement's per-step controls, ``PlannerState.warm_start``
             ``[N, 2]`` of the state passed to the solve, already shifted to begin now (:func:`shift_controls`);
             the grid's choice stays start 0.  A state without one (None, or NaN throughout) uses the grid's
@@ -298,6 +321,7 @@ class RefineSettings:
     fis_e_cl: float = DEFAULT_E_CL
     fis_n_y: int = DEFAULT_N_Y
     pc_capacity: int = 256
+    path_changes: str = "grid"
     previous_start: bool = False
 
     def __post_init__(self):
@@ -329,6 +353,8 @@ class RefineSettings:
         if self.previous_start and self.n_starts < 2:
             raise ValueError(f"RefineSettings.previous_start needs n_starts >= 2 (start 0 is the grid's choice), "
                              f"got n_starts {self.n_starts}")
+        if self.path_changes not in PATH_CHANGES:
+            raise ValueError(f"RefineSettings.path_changes must be one of {PATH_CHANGES}, got {self.path_changes!r}")
         if self.batch not in BATCH_MODES:
             raise ValueError(f"RefineSettings.batch must be one of {BATCH_MODES}, got {self.batch!r}")
         if self.colregs not in COLREGS_MODES:
@@ -362,7 +388,7 @@ class RefineSettings:
     def static(self, config: PlannerConfig) -> tuple:
         """The fields that shape the compiled refinement (part of its jit key)."""
         return (self.n_starts, self.batch, self.n_refine(config), self.colregs, self.block, self.fis_n_y,
-                self.pc_capacity, self.previous_start)
+                self.pc_capacity, self.previous_start, self.path_changes)
 
 
 class Refinement(NamedTuple):
@@ -527,14 +553,15 @@ def box(behaviours: BehaviourArrays):
 # ------------------------------------------------------------------------------------------ refine
 def _refine(inputs, best, last_offsets, params, samples, evaluation, solver, path_eps, fis_e_cl, grid_terms,
             previous=None, *, config, static):
-    n_starts, batch, n_ref, colregs, block, fis_n_y, pc_capacity, _ = static
+    n_starts, batch, n_ref, colregs, block, fis_n_y, pc_capacity, _, path_changes = static
     inputs = jax.tree.map(jnp.asarray, inputs)
     dtype = inputs.own.state.dtype
     n = config.n_steps
     last = jnp.asarray(last_offsets, dtype)
     if evaluation is None:
         evaluation = evaluate_arrays(inputs, last, params, samples, config, grid_terms)
-    terms = smooth_terms(grid_terms, colregs, path_eps, fis_e_cl, fis_n_y, pc_capacity)
+    n_maneuvers = int(inputs.behaviours.offsets.shape[1]) if path_changes == "grid" else None
+    terms = smooth_terms(grid_terms, colregs, path_eps, fis_e_cl, fis_n_y, pc_capacity, n_maneuvers)
     data = refine_data(inputs, last, params, config, terms)
     f, f_full = problem(config, n_ref, block)
 
@@ -650,4 +677,4 @@ refine.jitted = _refine_jit
 __all__ = ["RefineSettings", "Refinement", "refine", "smooth_terms", "ScenarioFuzzyColregsTerm", "SmoothPathTerm",
            "DEFAULT_SOLVER", "COLREGS_MODES", "refine_data", "smooth_costs", "rollout", "full_controls",
            "behaviour_controls", "warm_indices", "box", "problem", "RefineData", "FastCollisionTerm", "term_costs",
-           "grid_terms_fast", "fis_mu", "previous_plan"]
+           "grid_terms_fast", "fis_mu", "previous_plan", "PATH_CHANGES"]

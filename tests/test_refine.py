@@ -43,7 +43,9 @@ def prepared(situation, config=CFG, state=None, behaviours=SMALL_BEHAVIOURS):
 
 def smooth_f(controls, inputs, state, params, samples, config=CFG, settings=SETTINGS):
     """The oracle: psbmpc_jax.objective with the refinement's smooth terms (per step, smooth)."""
-    terms = smooth_terms(DEFAULT_TERMS, settings.colregs, settings.path_eps, settings.fis_e_cl, settings.fis_n_y)
+    n_m = SMALL_BEHAVIOURS.shape[1] if settings.path_changes == "grid" else None
+    terms = smooth_terms(DEFAULT_TERMS, settings.colregs, settings.path_eps, settings.fis_e_cl, settings.fis_n_y,
+                         path_maneuvers=n_m)
     return objective(controls, inputs, params, samples, config, terms, last_offsets=jnp.asarray(state.last_offsets),
                      per_step=True, smooth=True)[0]
 
@@ -54,6 +56,61 @@ def finite(ref: Refinement) -> bool:
 
 
 # ------------------------------------------------------------------------------------------ the cost terms
+def path_oracle(controls, last, p, eps, n_maneuvers):
+    """Float64 NumPy H_p of per-step ``controls [n, 2]`` (SmoothPathTerm's definition, docs/refine.md C-R-3)."""
+    u, chi = controls[:, 0], controls[:, 1]
+    n = len(u)
+    sabs = lambda x: np.sqrt(x * x + eps * eps) - eps  # noqa: E731
+    f = p["K_u"] * (1 - u) + np.where(chi < 0, p["K_chi_port"], p["K_chi_stbd"]) * chi ** 2
+
+    def h(u1, c1, u0, c0):
+        d = (c1 - c0 + np.pi) % (2 * np.pi) - np.pi
+        return p["K_du"] * sabs(u1 - u0) + np.where(d < 0, p["K_dchi_port"], p["K_dchi_stbd"]) * d * d
+
+    m = n if n_maneuvers is None else n_maneuvers
+    return (f.sum() / n + h(u[0], chi[0], last[0], last[1]) / m
+            + h(u[1:], chi[1:], u[:-1], chi[:-1]).sum() / max(m - 1, 1))
+
+
+def test_smooth_path_term_against_its_oracle_and_equal_to_the_grid_on_a_behaviour():
+    """Random per-step controls, both change weightings, against the float64 oracle; with the grid's n_M the
+    per-step form of a behaviour (equal maneuver blocks) costs exactly the grid's H_p (eps = 0), while the
+    per-control form makes its change n/n_M times cheaper."""
+    from types import SimpleNamespace
+
+    from psbmpc_jax.costs.path import path_cost
+    from psbmpc_jax.refine import SmoothPathTerm
+
+    params = Planner(CFG).params
+    p = {k: float(getattr(params, k)) for k in SmoothPathTerm.PARAMS}
+    rng = np.random.default_rng(3)
+    for n_m in (None, 1, 2, 3):
+        for _ in range(3):
+            c = np.stack([rng.uniform(0.0, 1.0, 12), rng.uniform(-1.5, 1.5, 12)], axis=-1)
+            last = np.array([rng.uniform(0, 1), rng.uniform(-1, 1)])
+            ctx = SimpleNamespace(offsets=jnp.asarray(c)[None], last_offsets=jnp.asarray(last))
+            got = float(SmoothPathTerm(eps=0.02, n_maneuvers=n_m)(ctx, params, CFG, None).value[0])
+            np.testing.assert_allclose(got, path_oracle(c, last, p, 0.02, n_m), rtol=1e-12)
+    behaviour = np.array([[0.5, 0.4], [1.0, -0.3]])
+    last = np.array([1.0, 0.0])
+    per_step = np.repeat(behaviour, 20, axis=0)                                     # N = 40, two equal blocks
+    grid = float(path_cost(jnp.asarray(behaviour)[None], jnp.asarray(last), params)[0])
+    ctx = SimpleNamespace(offsets=jnp.asarray(per_step)[None], last_offsets=jnp.asarray(last))
+    same = float(SmoothPathTerm(eps=0.0, n_maneuvers=2)(ctx, params, CFG, None).value[0])
+    np.testing.assert_allclose(same, grid, rtol=1e-12)
+    cheaper = float(SmoothPathTerm(eps=0.0)(ctx, params, CFG, None).value[0])
+    assert cheaper < grid
+    with pytest.raises(ValueError, match="n_maneuvers"):
+        SmoothPathTerm(n_maneuvers=0)
+    # differentiable, finite at a zero change (the smoothed |du|), both weightings
+    for n_m in (None, 2):
+        g = jax.grad(lambda x: SmoothPathTerm(eps=0.01, n_maneuvers=n_m)(
+            SimpleNamespace(offsets=x[None], last_offsets=jnp.asarray([1.0, 0.0])), params, CFG, None).value[0])(
+            jnp.asarray(np.tile([1.0, 0.0], (5, 1))))
+        assert np.all(np.isfinite(np.asarray(g)))
+
+
+
 @cost_term
 class NaiveFuzzyColregs:
     """κ Σ w P max_k μ_FIS by the dense max (the definition of ScenarioFuzzyColregsTerm)."""
@@ -148,7 +205,7 @@ def test_multistart_vmap_equals_map_equals_loop():
     # loop: every start solved on its own with the library solver; the best (lowest f) is the kept one
     idx = warm_indices(plan.best, ev, inputs, params, CFG, s.n_starts)
     f, f_full = problem(CFG, 20, 1)
-    terms = smooth_terms()
+    terms = smooth_terms(path_maneuvers=SMALL_BEHAVIOURS.shape[1])
     data = refine_data(inputs, jnp.asarray(state.last_offsets), params, CFG, terms)
     lo, hi = box(inputs.behaviours)
     results = []
@@ -201,6 +258,7 @@ def test_gradient_of_the_refine_objective_matches_finite_differences():
     ("n_starts", 0), ("n_starts", 2.5), ("n_starts", True), ("batch", "pmap"), ("horizon", -1.0),
     ("horizon", float("nan")), ("horizon", "60"), ("colregs", "boolean"), ("solver", {"max_inner": 3}),
     ("block", 0), ("path_eps", -0.1), ("fis_e_cl", 0.0), ("fis_n_y", 1), ("pc_capacity", 0),
+    ("path_changes", "maneuver"),
 ])
 def test_bad_settings_rejected(field, value):
     with pytest.raises(ValueError, match=f"RefineSettings.{field}"):
