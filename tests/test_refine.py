@@ -398,9 +398,9 @@ def test_previous_plan_start():
     or NaN throughout) the result equals the plain refinement; re-refining a situation from its own refined plan
     ends no higher (the plan is a warm start, and the safeguard keeps the lowest of them); the warm cost is the
     lowest over the grid's choice, the previous plan and the runner-ups.  One compilation for all of it."""
-    s = SETTINGS.replace(n_starts=3, previous_start=True)
+    s = SETTINGS.replace(previous_start=True)                     # 2 starts: the grid's choice, then the plan
     inputs, state, params, samples, plan, ev = prepared(random_situation(1, T=T))
-    plain = refine(inputs, plan, state, params, samples, CFG, SETTINGS.replace(n_starts=3), evaluation=ev)
+    plain = refine(inputs, plan, state, params, samples, CFG, SETTINGS, evaluation=ev)
     n0 = None
     for none in (None, np.full((N, 2), np.nan)):
         r = refine(inputs, plan, PlannerState(state.last_offsets, none), params, samples, CFG, s, evaluation=ev)
