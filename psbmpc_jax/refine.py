@@ -308,7 +308,7 @@ class RefineSettings:
         previous_start: start 1 is the previous refinement's per-step controls, ``PlannerState.warm_start``
             ``[N, 2]`` of the state passed to the solve, already shifted to begin now (:func:`shift_controls`);
             the grid's choice stays start 0.  A state without one (None, or NaN throughout) uses the grid's
-            starts.  Needs ``n_starts >= 2`` (static).
+            starts.  Needs ``n_starts >= 2``; a value (switching it does not recompile).
     """
 
     n_starts: int = 4
@@ -388,7 +388,7 @@ class RefineSettings:
     def static(self, config: PlannerConfig) -> tuple:
         """The fields that shape the compiled refinement (part of its jit key)."""
         return (self.n_starts, self.batch, self.n_refine(config), self.colregs, self.block, self.fis_n_y,
-                self.pc_capacity, self.previous_start, self.path_changes)
+                self.pc_capacity, self.path_changes)
 
 
 class Refinement(NamedTuple):
@@ -553,7 +553,7 @@ def box(behaviours: BehaviourArrays):
 # ------------------------------------------------------------------------------------------ refine
 def _refine(inputs, best, last_offsets, params, samples, evaluation, solver, path_eps, fis_e_cl, grid_terms,
             previous=None, *, config, static):
-    n_starts, batch, n_ref, colregs, block, fis_n_y, pc_capacity, _, path_changes = static
+    n_starts, batch, n_ref, colregs, block, fis_n_y, pc_capacity, path_changes = static
     inputs = jax.tree.map(jnp.asarray, inputs)
     dtype = inputs.own.state.dtype
     n = config.n_steps
@@ -639,11 +639,12 @@ def refine(inputs: SolveInputs, plan: Plan, state: PlannerState, params: Params,
                          f"{settings.n_starts}")
     static = settings.static(config)                       # validates the horizon against the config
     dtype = np.dtype(config.dtype)
-    previous = None
-    if settings.previous_start:
-        previous = previous_plan(state.warm_start, config.n_steps, dtype)
-    elif state.warm_start is not None and not isinstance(state.warm_start, jax.core.Tracer):
+    if not settings.previous_start and state.warm_start is not None \
+            and not isinstance(state.warm_start, jax.core.Tracer):
         raise ValueError("PlannerState.warm_start is only used with RefineSettings(previous_start=True)")
+    # with 2+ starts the previous-plan row is always passed (not valid without one): no recompile either way
+    previous = (previous_plan(state.warm_start if settings.previous_start else None, config.n_steps, dtype)
+                if settings.n_starts >= 2 else None)
     return _refine_jit(inputs, jnp.asarray(plan.best, jnp.int32), jnp.asarray(state.last_offsets, dtype), params,
                        samples, evaluation, settings.solver, jnp.asarray(settings.path_eps, dtype),
                        jnp.asarray(settings.fis_e_cl, dtype), terms, previous, config=config, static=static)

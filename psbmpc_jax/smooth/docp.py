@@ -346,11 +346,13 @@ def smooth_sbmpc_step(state0, route, targets, last, land, buffered_land, *, weig
     check_step_options(settings, solver, n_starts, batch)
     state0, route, targets, last = check_step_inputs(state0, route, targets, last)
     dtype = state0.dtype
-    prev = None
+    prev = None                          # with 2+ starts always a Previous: its presence is a value (no recompile)
     if previous is not None:
         if n_starts < 2:
             raise ValueError(f"previous needs n_starts >= 2 (row 0 is always Ψ), got n_starts {n_starts}")
         prev = Previous(jnp.asarray(check_previous(previous, settings.n_mpc), dtype), jnp.asarray(True))
+    elif n_starts >= 2:
+        prev = Previous(jnp.zeros((settings.n_mpc, 2), dtype), jnp.asarray(False))
     z = check_segment(segment, route.shape[0])
     land, buffered_land = (cast_tree(as_chart(c, name), dtype) for c, name in ((land, "land"),
                                                                             (buffered_land, "buffered_land")))

@@ -249,13 +249,14 @@ class SmoothSBMPCPlanner:
 
     def _previous(self, previous, lead: tuple):
         """``previous`` (None, or ``lead + [N_mpc, 2]`` with NaN rows for runs without one) as a
-        :class:`Previous` of device arrays, or None without ``previous_start``."""
+        :class:`Previous` of device arrays (not valid where there is none), or None with one start or
+        ``init_only``."""
         n = self.settings.n_mpc
-        if not self.previous_start:
-            if previous is not None:
-                raise ValueError("previous is only used with previous_start=True")
+        if not self.previous_start and previous is not None:
+            raise ValueError("previous is only used with previous_start=True")
+        if self.init_only or self.n_starts < 2:
             return None
-        if previous is None:
+        if previous is None:     # none: a row the starts ignore (with 2+ starts always passed: no recompile)
             return Previous(np.zeros((*lead, n, 2), self.dtype), np.zeros(lead, bool))
         a = check_previous(previous, n, "previous", lead)
         valid = ~np.all(np.isnan(a), axis=(-2, -1))
