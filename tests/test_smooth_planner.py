@@ -150,7 +150,7 @@ def test_float32_under_64_bit_jax_keeps_float32():
 def test_previous_plan_rows_equal_single_plans_and_a_nan_row_means_none():
     """``previous_start``: ``plan_batch`` with a previous plan per run (NaN throughout for a run without one)
     equals ``plan`` row by row, with ``previous=None`` for that run; the kept sequence is never worse than Ψ."""
-    p = SmoothSBMPCPlanner(BANKS, settings=SETTINGS, n_starts=3, dtype="float64", previous_start=True)
+    p = SmoothSBMPCPlanner(BANKS, settings=SETTINGS, n_starts=2, dtype="float64", previous_start=True)  # fixture's jit
     states, targets, last, segments = runs(seed=3)
     rng = np.random.default_rng(3)
     previous = np.stack([np.stack([rng.uniform(0.2, 1.0, N), rng.uniform(-1.0, 1.0, N)], axis=-1) for _ in range(3)])
@@ -162,7 +162,7 @@ def test_previous_plan_rows_equal_single_plans_and_a_nan_row_means_none():
         np.testing.assert_allclose(batch.cost[r], one.cost, rtol=1e-7, atol=1e-7)
         assert float(one.cost) <= float(one.warm_cost) + 1e-9 and float(one.violation) <= 1e-3
     # no previous plan at all is the plain planner with the same number of starts
-    plain = SmoothSBMPCPlanner(BANKS, settings=SETTINGS, n_starts=3, dtype="float64")
+    plain = SmoothSBMPCPlanner(BANKS, settings=SETTINGS, n_starts=2, dtype="float64")
     a = p.plan(states[0], ROUTE, targets[0], last[0], segments[0])
     b = plain.plan(states[0], ROUTE, targets[0], last[0], segments[0])
     np.testing.assert_allclose(a.controls, b.controls, rtol=0, atol=1e-9)

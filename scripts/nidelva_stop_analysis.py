@@ -1,0 +1,90 @@
+#!/usr/bin/env python3
+"""Where PSB-MPC + refinement's stops on Nidelva come from: at every MPC update of the own-ship, the grid
+search's choice (is its first maneuver a stop, speed factor < 0.05?) against the refined control applied
+(speed factor < 0.05?), per run, with the runs' longest stops (issue 12).
+
+    python scripts/nidelva_stop_analysis.py --runs 15 --out results/methods/nidelva/stop_analysis.json
+
+Same scenario, seeds and settings as ``scripts/compare_methods.py nidelva --methods psbmpc,psbmpc_refine``
+(runs 0 … R − 1 of seed 1 are the same runs there).  A stopped update: own-ship speed <= 0.2 m/s at the update
+(the metrics' stop threshold).
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import json
+import pathlib
+import platform
+import sys
+
+import numpy as np
+
+REPO = pathlib.Path(__file__).resolve().parents[1]
+STOP_FACTOR = 0.05
+STOP_SPEED = 0.2
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--runs", type=int, default=15)
+    p.add_argument("--out", default=str(REPO / "results" / "methods" / "nidelva" / "stop_analysis.json"))
+    args = p.parse_args(argv)
+
+    import jax
+
+    from psbmpc_jax.provenance import commit
+    from psbmpc_jax.scenario import load_scenario
+    from psbmpc_jax.sim import colav, simulate
+
+    started_at = commit()
+    seen = []
+    original = colav._Solver._refine_one
+
+    def recording(self, inputs, plan, state, evaluation):
+        ref = original(self, inputs, plan, state, evaluation)
+        seen.append((int(np.asarray(plan.best)), float(np.asarray(ref.apply)[0]), int(ref.behaviour)))
+        return ref
+
+    colav._Solver._refine_one = recording
+    sc = load_scenario("nidelva", method="psbmpc_refine")
+    res = simulate(sc, runs=args.runs, progress=False)
+    behaviours = np.asarray(sc.mpc.behaviours)
+    M, R = len(res.solve_t), args.runs
+    if len(seen) != M * R:
+        raise RuntimeError(f"expected {M * R} refinements (updates x runs), recorded {len(seen)}")
+    best = np.array([s[0] for s in seen]).reshape(M, R)
+    applied_u = np.array([s[1] for s in seen]).reshape(M, R)
+    from_previous = np.array([s[2] == -1 for s in seen]).reshape(M, R)
+    k = np.searchsorted(res.t, res.solve_t)
+    stopped = res.states[:, 0, k, 3].T <= STOP_SPEED                                   # [M, R]
+    grid_stop = behaviours[best][..., 0, 0] < STOP_FACTOR                                # [M, R]
+    refined_stop = applied_u < STOP_FACTOR
+    runs = []
+    for r in range(R):
+        s, g, f = stopped[:, r], grid_stop[:, r], refined_stop[:, r]
+        runs.append({"run": r, "longest_stop_s": res.metrics[r]["longest_stop_s"], "stopped_updates": int(s.sum()),
+                     "grid_chose_stop_at_stopped_updates": int((g & s).sum()),
+                     "refined_stop_at_stopped_updates": int((f & s).sum()),
+                     "grid_chose_stop_updates": int(g.sum()), "refined_stop_updates": int(f.sum()),
+                     "refined_stop_while_grid_moves": int((f & ~g).sum()),
+                     "kept_previous_plan_start": int(from_previous[:, r].sum())})
+    total = {key: int(sum(x[key] for x in runs)) for key in runs[0] if key not in ("run", "longest_stop_s")}
+    doc = {"scenario": "nidelva", "method": "psbmpc_refine", "runs": R, "seed": sc.seed, "updates_per_run": M,
+           "stop_speed_factor_below": STOP_FACTOR, "stopped_speed_m_s_at_most": STOP_SPEED, "per_run": runs,
+           "total": total, "commit": started_at, "device": str(jax.devices()[0]), "platform": platform.platform(),
+           "versions": {"python": sys.version.split()[0], "jax": jax.__version__, "numpy": np.__version__},
+           "command": "python scripts/nidelva_stop_analysis.py " + " ".join(argv if argv is not None else sys.argv[1:]),
+           "utc": dt.datetime.now(dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")}
+    out = pathlib.Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(doc, indent=1) + "\n")
+    for x in runs:
+        print(json.dumps(x))
+    print("total", json.dumps(total))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
