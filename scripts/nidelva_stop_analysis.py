@@ -7,7 +7,9 @@ search's choice (is its first maneuver a stop, speed factor < 0.05?) against the
 
 Same scenario, seeds and settings as ``scripts/compare_methods.py nidelva --methods psbmpc,psbmpc_refine``
 (runs 0 … R − 1 of seed 1 are the same runs there).  A stopped update: own-ship speed <= 0.2 m/s at the update
-(the metrics' stop threshold).
+(the metrics' stop threshold).  ``--start-margin`` overrides the solver's ``start_margin`` (how far into the box
+the starts are moved; a start on the speed bound 0, the stop behaviour, sits where the sin box map's slope
+vanishes): a check whether the stops are an artefact of that map.
 """
 
 from __future__ import annotations
@@ -30,6 +32,8 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--runs", type=int, default=15)
     p.add_argument("--out", default=str(REPO / "results" / "methods" / "nidelva" / "stop_analysis.json"))
+    p.add_argument("--start-margin", type=float, default=None,
+                   help="the refinement solver's start_margin (default: the library's, 1e-3)")
     args = p.parse_args(argv)
 
     import jax
@@ -48,6 +52,14 @@ def main(argv=None) -> int:
         return ref
 
     colav._Solver._refine_one = recording
+    if args.start_margin is not None:
+        settings_of = colav.refine_settings
+
+        def with_margin(mpc, cls):
+            s = settings_of(mpc, cls)
+            return s.replace(solver=s.solver.replace(start_margin=args.start_margin))
+
+        colav.refine_settings = with_margin
     sc = load_scenario("nidelva", method="psbmpc_refine")
     res = simulate(sc, runs=args.runs, progress=False)
     behaviours = np.asarray(sc.mpc.behaviours)
@@ -72,6 +84,9 @@ def main(argv=None) -> int:
                      "kept_previous_plan_start": int(from_previous[:, r].sum())})
     total = {key: int(sum(x[key] for x in runs)) for key in runs[0] if key not in ("run", "longest_stop_s")}
     doc = {"scenario": "nidelva", "method": "psbmpc_refine", "runs": R, "seed": sc.seed, "updates_per_run": M,
+           "start_margin": args.start_margin,
+           "mean_abs_course_rate_deg_s": float(np.mean([x["mean_abs_course_rate_deg_s"] for x in res.metrics])),
+           "collisions": res.summary["collisions"], "groundings": res.summary["groundings"],
            "stop_speed_factor_below": STOP_FACTOR, "stopped_speed_m_s_at_most": STOP_SPEED, "per_run": runs,
            "total": total, "commit": started_at, "device": str(jax.devices()[0]), "platform": platform.platform(),
            "versions": {"python": sys.version.split()[0], "jax": jax.__version__, "numpy": np.__version__},
