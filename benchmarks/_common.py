@@ -88,3 +88,26 @@ def write_results(out: str, prefix: str, meta: dict, points: list) -> str:
         json.dump({"meta": meta, "points": points}, fh, indent=1)
     print(f"wrote {path}")
     return path
+
+
+def interleaved_parser(description: str, repeats: int):
+    """The command line of an interleaved benchmark script: ``--repeats`` and ``--out`` (default: results/)."""
+    import argparse
+
+    ap = argparse.ArgumentParser(description=description)
+    ap.add_argument("--repeats", type=int, default=repeats)
+    ap.add_argument("--out", default=os.path.join(os.path.dirname(os.path.abspath(__file__)), "results"))
+    return ap
+
+
+def run_interleaved(slots, args, prefix: str, benchmark: str, hide=(), **extra) -> str:
+    """:func:`time_interleaved` over ``slots`` with ``args.repeats``, one line per point printed (floats to 4
+    decimals; quartiles and ``hide`` left out), written by :func:`write_results` under ``args.out`` with
+    :func:`environment_meta` (``schedule="interleaved"``, the load average, ``extra``).  Returns the path."""
+    points = time_interleaved(slots, args.repeats)
+    skip = {"min_ms", "max_ms", "q1_ms", "q3_ms", *hide}
+    for p in points:
+        print({k: (round(v, 4) if isinstance(v, float) else v) for k, v in p.items() if k not in skip})
+    meta = environment_meta(benchmark, repeats=args.repeats, schedule="interleaved", load_avg=os.getloadavg(),
+                            **extra)
+    return write_results(args.out, prefix, meta, points)

@@ -13,7 +13,6 @@ RDP at 2 m, 2 510 edges):
 
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 
@@ -28,7 +27,7 @@ from psbmpc_jax.packing import pack_world
 from psbmpc_jax.solve import solve
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _common import environment_meta, time_interleaved, write_results  # noqa: E402
+from _common import interleaved_parser, run_interleaved  # noqa: E402
 
 
 def nearest_step_slots(situation, sizes=(39, 1014, 2028)):
@@ -73,18 +72,11 @@ def solve_slots(situation, n_cbs=(39, 1014)):
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--repeats", type=int, default=30)
-    ap.add_argument("--out", default=os.path.join(os.path.dirname(os.path.abspath(__file__)), "results"))
-    args = ap.parse_args(argv)
+    args = interleaved_parser(__doc__.splitlines()[0], 30).parse_args(argv)
     situation = nidelva_head_on()
     slots = nearest_step_slots(situation) + solve_slots(situation)
-    points = time_interleaved(slots, args.repeats)
-    for p in points:
-        print({k: v for k, v in p.items() if k not in ("min_ms", "max_ms", "q1_ms", "q3_ms")})
-    meta = environment_meta("exact grounding layouts: culled vs dense (PlannerConfig.grounding_search)",
-                            repeats=args.repeats, schedule="interleaved", load_avg=os.getloadavg())
-    write_results(args.out, "grounding_layout", meta, points)
+    run_interleaved(slots, args, "grounding_layout",
+                    "exact grounding layouts: culled vs dense (PlannerConfig.grounding_search)")
     return 0
 
 

@@ -15,7 +15,6 @@ float32 otherwise):
 
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 import warnings
@@ -24,7 +23,7 @@ import jax
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _common import environment_meta, time_interleaved, write_results  # noqa: E402
+from _common import interleaved_parser, run_interleaved  # noqa: E402
 
 
 def build(name):
@@ -77,17 +76,10 @@ def slots_for(case, name):
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--repeats", type=int, default=30)
-    ap.add_argument("--out", default=os.path.join(os.path.dirname(os.path.abspath(__file__)), "results"))
-    args = ap.parse_args(argv)
+    args = interleaved_parser(__doc__.splitlines()[0], 30).parse_args(argv)
     slots = slots_for("fjord", "mahipala2023_7_combined") + slots_for("smooth000", "smooth_000_reconstruction")
-    points = time_interleaved(slots, args.repeats)
-    for p in points:
-        print({k: v for k, v in p.items() if k not in ("min_ms", "max_ms", "q1_ms", "q3_ms")})
-    meta = environment_meta("two-level MPC: upper-level NMPC solve and whole update", repeats=args.repeats,
-                            schedule="interleaved", load_avg=os.getloadavg(), x64=bool(jax.config.jax_enable_x64))
-    write_results(args.out, "path_mpc", meta, points)
+    run_interleaved(slots, args, "path_mpc", "two-level MPC: upper-level NMPC solve and whole update",
+                    x64=bool(jax.config.jax_enable_x64))
     return 0
 
 

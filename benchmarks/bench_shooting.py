@@ -14,7 +14,6 @@ out, so both are judged on the same trajectory), the constraint violation, itera
 
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 
@@ -23,7 +22,7 @@ import jax.numpy as jnp
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _common import environment_meta, time_interleaved, write_results  # noqa: E402
+from _common import interleaved_parser, run_interleaved  # noqa: E402
 from bench_path_mpc import build  # noqa: E402
 
 
@@ -103,10 +102,7 @@ def main(argv=None) -> int:
     from psbmpc_jax.nlp import solve_docp
     from psbmpc_jax.two_level import path_mpc as pm
 
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--repeats", type=int, default=20)
-    ap.add_argument("--out", default=os.path.join(os.path.dirname(os.path.abspath(__file__)), "results"))
-    args = ap.parse_args(argv)
+    args = interleaved_parser(__doc__.splitlines()[0], 20).parse_args(argv)
     slots = []
     for case, name, s, d in cases():
         u0 = pm.warm_start(d, s)
@@ -139,13 +135,8 @@ def main(argv=None) -> int:
                                     violation=float(r2.max_violation), status=int(r2.status),
                                     outer=int(r2.outer_iterations), inner=int(r2.inner_iterations)),
                       "call": run_multiple})
-    points = time_interleaved(slots, args.repeats)
-    for p in points:
-        print({k: (round(v, 4) if isinstance(v, float) else v) for k, v in p.items()
-               if k not in ("min_ms", "max_ms", "q1_ms", "q3_ms", "scenario")})
-    meta = environment_meta("two-level upper level: single vs multiple shooting", repeats=args.repeats,
-                            schedule="interleaved", load_avg=os.getloadavg(), x64=bool(jax.config.jax_enable_x64))
-    write_results(args.out, "shooting", meta, points)
+    run_interleaved(slots, args, "shooting", "two-level upper level: single vs multiple shooting", hide=("scenario",),
+                    x64=bool(jax.config.jax_enable_x64))
     return 0
 
 
