@@ -129,6 +129,17 @@ def _refine_function():
     return refine, RefineSettings
 
 
+def plan_now(kept, t: float, step: float) -> np.ndarray:
+    """A plan kept at an earlier update, ``(t_kept [s], controls [..., N, 2])`` with one control per ``step``
+    seconds, as seen at time ``t``: shifted by the steps since (:func:`~psbmpc_jax.numerics.shift_controls`), or
+    NaN throughout (no plan) once its whole horizon has passed."""
+    t_kept, controls = kept
+    steps = int(round((t - t_kept) / step))
+    if steps > controls.shape[-2]:
+        return np.full_like(controls, np.nan)
+    return shift_controls(controls, steps)
+
+
 class _Solver:
     """Device side of one PSB-MPC update: solve packed situations (one vmapped call or one call each) and return
     the chosen behaviour indices, their cost columns and, on request, one situation's full evaluation; the jobs
@@ -206,12 +217,9 @@ class GridGroup:
         None without ``previous_start``."""
         if not self.previous_start:
             return None
-        n = self.mpc.config.n_steps
         if (r, i) not in self._previous:
-            return np.full((n, 2), np.nan)
-        t_prev, controls = self._previous[(r, i)]
-        steps = int(round((float(loop.t[k]) - t_prev) / self.mpc.config.dt))
-        return np.full((n, 2), np.nan) if steps > n else shift_controls(controls, steps)
+            return np.full((self.mpc.config.n_steps, 2), np.nan)
+        return plan_now(self._previous[(r, i)], float(loop.t[k]), self.mpc.config.dt)
 
     @property
     def snapshots(self) -> bool:
@@ -371,11 +379,7 @@ class SmoothGroup:
     def _shifted_previous(self, t: float):
         if not self.previous_start or self._previous is None:
             return None
-        t_prev, controls = self._previous
-        steps = int(round((t - t_prev) / self.step))
-        if steps > controls.shape[1]:
-            return np.full_like(controls, np.nan)
-        return shift_controls(controls, steps)
+        return plan_now(self._previous, t, self.step)
 
     def update(self, loop, k: int, keep_job) -> Decisions:
         R = loop.R
