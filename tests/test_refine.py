@@ -14,7 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from conftest import CAPS, SMALL_BEHAVIOURS, pad_arrays, random_situation
+from conftest import CAPS, SMALL_BEHAVIOURS, central_difference, pad_arrays, random_situation
 from psbmpc_jax import Obstacle, OwnShip, Planner, PlannerConfig, Situation
 from psbmpc_jax.costs.base import TermValue, cost_term
 from psbmpc_jax.costs.collision import CollisionTerm
@@ -108,6 +108,14 @@ def test_smooth_path_term_against_its_oracle_and_equal_to_the_grid_on_a_behaviou
             SimpleNamespace(offsets=x[None], last_offsets=jnp.asarray([1.0, 0.0])), params, CFG, None).value[0])(
             jnp.asarray(np.tile([1.0, 0.0], (5, 1))))
         assert np.all(np.isfinite(np.asarray(g)))
+    # the gradient against central differences at random interior points (changes away from 0 and ±π)
+    for n_m in (None, 2):
+        c = np.stack([rng.uniform(0.2, 0.9, 6), rng.uniform(-0.6, 0.6, 6)], axis=-1)
+        fn = lambda x, n_m=n_m: SmoothPathTerm(eps=0.02, n_maneuvers=n_m)(  # noqa: E731
+            SimpleNamespace(offsets=jnp.asarray(x)[None], last_offsets=jnp.asarray([0.7, 0.1])), params, CFG,
+            None).value[0]
+        np.testing.assert_allclose(np.asarray(jax.grad(fn)(jnp.asarray(c))), central_difference(fn, c), rtol=1e-6,
+                                   atol=1e-8)
 
 
 
