@@ -15,6 +15,9 @@ iterations.  Slots are compiled first, then timed round-robin (one repeat of eac
 benchmark is ``psbmpc-jax bench --preset refine`` (JSON Lines records, schema psbmpc-bench-refine/1).
 
 Usage: python benchmarks/bench_refine.py [--repeats 20] [--warmup 2] [--cases nidelva,nidelva_T60,paper000]
+                                        [--slots nidelva:1:map,nidelva:16:vmap]
+``--slots`` keeps only the named (case, starts, batch) entries of REFINE_CASES (each compiles for a minute or
+more on a small CPU host: a short lent-GPU session times a few).
 Writes benchmarks/results/refine_<platform>_<UTC stamp>.json.
 """
 
@@ -34,6 +37,8 @@ def main(argv=None) -> int:
     ap.add_argument("--warmup", type=int, default=2)
     ap.add_argument("--cases", default="nidelva,nidelva_T60,paper000",
                     help="comma-separated case names of psbmpc_jax.bench.REFINE_CASES")
+    ap.add_argument("--slots", default=None,
+                    help="comma-separated case:starts:batch entries of REFINE_CASES to keep (default: all of --cases)")
     ap.add_argument("--out", default=os.path.join(os.path.dirname(os.path.abspath(__file__)), "results"))
     args = ap.parse_args(argv)
     from psbmpc_jax.bench import REFINE_CASES, refine_benchmark
@@ -43,6 +48,13 @@ def main(argv=None) -> int:
     if args.repeats < 2 or args.warmup < 0 or not names or any(n not in known for n in names):
         ap.error(f"--repeats >= 2, --warmup >= 0 and --cases from {','.join(known)}")
     cases = tuple(c for c in REFINE_CASES if c[0] in names)
+    if args.slots is not None:
+        entries = {e for e in args.slots.split(",") if e}
+        known_slots = {f"{c[0]}:{c[3]}:{c[4]}" for c in cases}
+        if not entries or not entries <= known_slots:
+            ap.error(f"--slots: unknown entries {sorted(entries - known_slots)}; allowed (within --cases): "
+                     f"{','.join(sorted(known_slots))}")
+        cases = tuple(c for c in cases if f"{c[0]}:{c[3]}:{c[4]}" in entries)
     points = refine_benchmark(args.repeats, args.warmup, cases, log=lambda m: print(m, flush=True))
     meta = environment_meta("PSB-MPC + refinement at Nidelva scale (Nidelva head-on on the chart, grid grounding, "
                             "float32)", repeats=args.repeats, warmup=args.warmup, schedule="interleaved",

@@ -7,6 +7,8 @@
 #   OUT=/some/dir bash benchmarks/gpu_session.sh tests     # the test suite on the GPU (bounded; verbose log)
 #   OUT=/some/dir bash benchmarks/gpu_session.sh dense     # exact grounding: culled vs dense search (fig5, fig9),
 #                                                          # then fig10/fig6s/fig7s with the dense search
+#   OUT=/some/dir bash benchmarks/gpu_session.sh refine    # the PSB-MPC + refinement benchmark (bench_refine.py)
+#                                                          # at the slots $SLOTS, bounded by $REFINE_TIMEOUT s
 #   SMALL=1 OUT=/tmp/x bash benchmarks/gpu_session.sh bench   # dry run at toy sizes (any machine)
 #
 # Wheels of packages missing on the device image (shapely, pyshp) are installed from .whl/ when that folder
@@ -76,6 +78,12 @@ elif [ "$what" = dense ]; then
   for s in culled dense; do b 40 bench_gpu_fig9 $F9 --grounding-search $s; done
   b 55 bench_gpu_fig6s $F6S --grounding-search culled
   b 70 bench_gpu_fig7s $F7S --grounding-search culled
+  ls -la "$OUT"
+elif [ "$what" = refine ]; then
+  # each refinement slot compiles for a minute or more: a few slots, 10 interleaved rounds; the log keeps the
+  # compile lines should the bound stop it before the JSON is written
+  timeout -s INT -k 10 "${REFINE_TIMEOUT:-300}" python3 benchmarks/bench_refine.py --repeats "${R:-10}" --warmup 1 \
+    --slots "${SLOTS:-nidelva:1:map,nidelva:16:vmap,nidelva_T60:16:vmap}" --out "$OUT" 2>&1 | tee "$OUT/refine.log"
   ls -la "$OUT"
 elif [ "$what" = tests ]; then
   timeout "${TEST_TIMEOUT:-300}" python3 -m pytest -v -n "${WORKERS:-12}" --dist loadfile -p no:cacheprovider \
