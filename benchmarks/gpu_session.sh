@@ -86,8 +86,10 @@ elif [ "$what" = refine ]; then
     --slots "${SLOTS:-nidelva:1:map,nidelva:16:vmap,nidelva_T60:16:vmap}" --out "$OUT" 2>&1 | tee "$OUT/refine.log"
   ls -la "$OUT"
 elif [ "$what" = tests ]; then
-  timeout "${TEST_TIMEOUT:-300}" python3 -m pytest -v -n "${WORKERS:-12}" --dist loadfile -p no:cacheprovider \
-    --timeout 240 -W ignore > "$OUT/tests_gpu.log" 2>&1
+  # the project's addopts name pytest-rerunfailures, which the device image lacks: replaced here. SIGINT at the
+  # bound lets pytest print the failures' tracebacks and the summary (a plain kill loses both)
+  timeout -s INT -k 30 "${TEST_TIMEOUT:-300}" python3 -m pytest -v -ra --tb=short -o addopts="" -n "${WORKERS:-12}" \
+    --dist loadfile -p no:cacheprovider --timeout 240 -W ignore > "$OUT/tests_gpu.log" 2>&1
   echo "pytest exit: $?" | tee -a "$OUT/tests_gpu.log"
   grep -cE " PASSED" "$OUT/tests_gpu.log"; grep -E " FAILED| ERROR" "$OUT/tests_gpu.log" | head -40
   tail -5 "$OUT/tests_gpu.log"
