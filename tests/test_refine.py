@@ -8,6 +8,7 @@ direct calls pad with ``pad_arrays``), so new situations are new values, not new
 from __future__ import annotations
 
 import math
+from functools import partial
 
 import jax
 import jax.numpy as jnp
@@ -41,13 +42,24 @@ def prepared(situation, config=CFG, state=None, behaviours=SMALL_BEHAVIOURS):
     return inputs, state, params, samples, plan, ev
 
 
+@partial(jax.jit, static_argnames=("config", "smooth"))
+def per_step_objective(controls, inputs, params, samples, last_offsets, terms, config=CFG, smooth=True):
+    """psbmpc_jax.objective of per-step controls, jitted: the oracles below call it with many situations of one
+    padded shape, and the eager form dispatched thousands of small ops per call (18 s for the first)."""
+    return objective(controls, inputs, params, samples, config, terms, last_offsets=last_offsets, per_step=True,
+                     smooth=smooth)[0]
+
+
+#: its value and gradient in the controls (one compilation per term set, shared by the parametrised cases)
+per_step_value_and_grad = jax.jit(jax.value_and_grad(per_step_objective))
+
+
 def smooth_f(controls, inputs, state, params, samples, config=CFG, settings=SETTINGS):
     """The oracle: psbmpc_jax.objective with the refinement's smooth terms (per step, smooth)."""
     n_m = SMALL_BEHAVIOURS.shape[1] if settings.path_changes == "grid" else None
     terms = smooth_terms(DEFAULT_TERMS, settings.colregs, settings.path_eps, settings.fis_e_cl, settings.fis_n_y,
                          path_maneuvers=n_m)
-    return objective(controls, inputs, params, samples, config, terms, last_offsets=jnp.asarray(state.last_offsets),
-                     per_step=True, smooth=True)[0]
+    return per_step_objective(controls, inputs, params, samples, jnp.asarray(state.last_offsets), terms, config)
 
 
 def finite(ref: Refinement) -> bool:
@@ -147,11 +159,10 @@ def test_fast_terms_equal_their_dense_definitions(seed):
     u = jnp.asarray(np.stack([rng.uniform(0.3, 1.0, N), rng.uniform(-0.8, 0.8, N)], axis=1))
     pairs = [((CollisionTerm(),), (FastCollisionTerm(),)), ((CollisionTerm(),), (FastCollisionTerm(capacity=3),)),
              ((NaiveFuzzyColregs(),), (ScenarioFuzzyColregsTerm(),))]
+    last = jnp.asarray([1.0, 0.0])                                     # objective's default
     for dense, fast in pairs:
-        va, ga = jax.value_and_grad(lambda c: objective(c, inputs, params, samples, CFG, dense, per_step=True,
-                                                        smooth=True)[0])(u)
-        vb, gb = jax.value_and_grad(lambda c: objective(c, inputs, params, samples, CFG, fast, per_step=True,
-                                                        smooth=True)[0])(u)
+        va, ga = per_step_value_and_grad(u, inputs, params, samples, last, dense)
+        vb, gb = per_step_value_and_grad(u, inputs, params, samples, last, fast)
         assert float(va) > 0
         np.testing.assert_allclose(float(vb), float(va), rtol=1e-12)
         np.testing.assert_allclose(np.asarray(gb), np.asarray(ga), rtol=1e-9, atol=1e-12 * float(jnp.max(jnp.abs(ga))))
@@ -168,8 +179,8 @@ def test_refined_smooth_cost_not_above_warm_cost(seed):
     np.testing.assert_array_equal(np.asarray(r.apply), np.asarray(r.controls[0]))
     # the reported costs are the oracle's: the smooth objective and the grid's cost of the kept controls
     np.testing.assert_allclose(float(r.cost), float(smooth_f(r.controls, inputs, state, params, samples)), rtol=1e-9)
-    grid = objective(r.controls, inputs, params, samples, CFG, DEFAULT_TERMS,
-                     last_offsets=jnp.asarray(state.last_offsets), per_step=True, smooth=False)[0]
+    grid = per_step_objective(r.controls, inputs, params, samples, jnp.asarray(state.last_offsets), DEFAULT_TERMS,
+                              smooth=False)
     np.testing.assert_allclose(float(r.grid_cost), float(grid), rtol=1e-9)
     # the warm cost is the lowest smooth cost over the warm starts, the grid's choice first
     idx = warm_indices(plan.best, ev, inputs, params, CFG, SETTINGS.n_starts)
@@ -250,13 +261,14 @@ def test_gradient_of_the_refine_objective_matches_finite_differences():
     data = refine_data(inputs, jnp.asarray(state.last_offsets), params, CFG, smooth_terms())
     rng = np.random.default_rng(7)
     tail = jnp.asarray(np.tile([[1.0, 0.1]], (N - 20, 1)))
+    fz = jax.jit(lambda z: f(z, (data, tail)))                  # the differences: one compiled evaluation
     g = jax.jit(jax.value_and_grad(lambda z: f(z, (data, tail))))
     for _ in range(3):
         z = jnp.asarray(np.stack([rng.uniform(0.4, 0.95, 10), rng.uniform(-0.7, 0.7, 10)], axis=1))
         _, grad = g(z)
         v = jnp.asarray(rng.normal(size=z.shape))
         h = 1e-6
-        fd = (float(f(z + h * v, (data, tail))) - float(f(z - h * v, (data, tail)))) / (2 * h)
+        fd = (float(fz(z + h * v)) - float(fz(z - h * v))) / (2 * h)
         an = float(jnp.sum(grad * v))
         assert math.isfinite(an)
         np.testing.assert_allclose(an, fd, rtol=2e-4, atol=1e-6 * max(1.0, abs(fd)))
