@@ -46,7 +46,7 @@ from .costs.colregs import ColregsTerm
 from .costs.colregs_fuzzy import (DEFAULT_E_CL, DEFAULT_EPS, DEFAULT_N_Y, RAD2DEG, check_fis_params, check_param,
                                   defuzzify, encounter_inputs_xy, fis_colregs, memberships, rule_strengths)
 from .costs.path import PathTerm
-from .evaluate import DEFAULT_TERMS, context, cost_terms, evaluate_arrays
+from .evaluate import DEFAULT_TERMS, context, cost_terms, evaluate
 from .nlp import BATCH_MODES, SolverSettings, best_index, safeguard, solve_docp
 from .numerics import safe_sqrt, shift_controls, wrap_angle
 from .ownship import Path, Trajectory, los_rollout, make_path, maneuver_index
@@ -558,8 +558,6 @@ def _refine(inputs, best, last_offsets, params, samples, evaluation, solver, pat
     dtype = inputs.own.state.dtype
     n = config.n_steps
     last = jnp.asarray(last_offsets, dtype)
-    if evaluation is None:
-        evaluation = evaluate_arrays(inputs, last, params, samples, config, grid_terms)
     n_maneuvers = int(inputs.behaviours.offsets.shape[1]) if path_changes == "grid" else None
     terms = smooth_terms(grid_terms, colregs, path_eps, fis_e_cl, fis_n_y, pc_capacity, n_maneuvers)
     data = refine_data(inputs, last, params, config, terms)
@@ -645,6 +643,8 @@ def refine(inputs: SolveInputs, plan: Plan, state: PlannerState, params: Params,
     # with 2+ starts the previous-plan row is always passed (not valid without one): no recompile either way
     previous = (previous_plan(state.warm_start if settings.previous_start else None, config.n_steps, dtype)
                 if settings.n_starts >= 2 else None)
+    if evaluation is None:      # evaluated here, outside the refinement's jit: both calls share one compilation
+        evaluation = evaluate(inputs, jnp.asarray(state.last_offsets, dtype), params, samples, config, terms)
     return _refine_jit(inputs, jnp.asarray(plan.best, jnp.int32), jnp.asarray(state.last_offsets, dtype), params,
                        samples, evaluation, settings.solver, jnp.asarray(settings.path_eps, dtype),
                        jnp.asarray(settings.fis_e_cl, dtype), terms, previous, config=config, static=static)

@@ -210,8 +210,10 @@ def test_refinement_improves_a_head_on():
 def test_evaluation_is_optional():
     inputs, state, params, samples, plan, ev = prepared(random_situation(1, T=T))
     a = refine(inputs, plan, state, params, samples, CFG, SETTINGS, evaluation=ev)
+    n0 = refine.jitted._cache_size()
     b = refine(inputs, plan, state, params, samples, CFG, SETTINGS)
     np.testing.assert_allclose(np.asarray(b.controls), np.asarray(a.controls), rtol=1e-12, atol=1e-12)
+    assert refine.jitted._cache_size() == n0        # the grid is evaluated outside: one compiled refinement
 
 
 def test_multistart_vmap_equals_map_equals_loop():
