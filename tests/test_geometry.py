@@ -25,11 +25,26 @@ from psbmpc_jax.situation import ring_vertices
 from conftest import star
 
 
+EDGE_CAPACITY = 64
+
+
+@jax.jit
+def _distance(px, py, verts, nxt, n):
+    """The kernel on an edge table padded past its ``n`` valid edges (as pack pads it): every hypothesis example
+    (3-60 vertices) reuses this one compilation."""
+    return polygon_distance(px, py, edge_table(verts, nxt), n)
+
+
 def device_distance(rings, pts):
     """Pack one polygon (tuple of rings) like pack does and run the device kernel."""
     verts, nxt = ring_vertices(tuple(rings))
-    tab = edge_table(jnp.asarray(verts), jnp.asarray(nxt))
-    return polygon_distance(jnp.asarray(pts[:, 0]), jnp.asarray(pts[:, 1]), tab, len(verts))
+    n = len(verts)
+    assert n <= EDGE_CAPACITY
+    pad = EDGE_CAPACITY - n
+    verts = np.concatenate([verts, np.full((pad, 2), np.nan)])      # padding: never read (n is the loop bound)
+    nxt = np.concatenate([nxt, np.arange(n, EDGE_CAPACITY)])
+    return _distance(jnp.asarray(pts[:, 0]), jnp.asarray(pts[:, 1]), jnp.asarray(verts), jnp.asarray(nxt),
+                     jnp.asarray(n, jnp.int32))
 
 
 @settings(max_examples=60, deadline=None)
