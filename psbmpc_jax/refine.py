@@ -643,9 +643,10 @@ def refine(inputs: SolveInputs, plan: Plan, state: PlannerState, params: Params,
     # with 2+ starts the previous-plan row is always passed (not valid without one): no recompile either way
     previous = (previous_plan(state.warm_start if settings.previous_start else None, config.n_steps, dtype)
                 if settings.n_starts >= 2 else None)
+    last = jnp.asarray(state.last_offsets, dtype)
     if evaluation is None:      # evaluated here, outside the refinement's jit: both calls share one compilation
-        evaluation = evaluate(inputs, jnp.asarray(state.last_offsets, dtype), params, samples, config, terms)
-    return _refine_jit(inputs, jnp.asarray(plan.best, jnp.int32), jnp.asarray(state.last_offsets, dtype), params,
+        evaluation = evaluate(inputs, last, params, samples, config, terms)
+    return _refine_jit(inputs, jnp.asarray(plan.best, jnp.int32), last, params,
                        samples, evaluation, settings.solver, jnp.asarray(settings.path_eps, dtype),
                        jnp.asarray(settings.fis_e_cl, dtype), terms, previous, config=config, static=static)
 

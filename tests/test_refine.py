@@ -263,8 +263,9 @@ def test_gradient_of_the_refine_objective_matches_finite_differences():
     data = refine_data(inputs, jnp.asarray(state.last_offsets), params, CFG, smooth_terms())
     rng = np.random.default_rng(7)
     tail = jnp.asarray(np.tile([[1.0, 0.1]], (N - 20, 1)))
-    fz = jax.jit(lambda z: f(z, (data, tail)))                  # the differences: one compiled evaluation
-    g = jax.jit(jax.value_and_grad(lambda z: f(z, (data, tail))))
+    f_z = lambda z: f(z, (data, tail))  # noqa: E731
+    fz = jax.jit(f_z)                                           # the differences: one compiled evaluation
+    g = jax.jit(jax.value_and_grad(f_z))
     for _ in range(3):
         z = jnp.asarray(np.stack([rng.uniform(0.4, 0.95, 10), rng.uniform(-0.7, 0.7, 10)], axis=1))
         _, grad = g(z)
