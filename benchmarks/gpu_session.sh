@@ -4,7 +4,9 @@
 #
 #   OUT=/some/dir bash benchmarks/gpu_session.sh bench     # paper sweep on the GPU, same-host CPU fig5, large
 #                                                          # behaviour tables, batched closed loop
-#   OUT=/some/dir bash benchmarks/gpu_session.sh tests     # the test suite on the GPU (bounded; verbose log)
+#   OUT=/some/dir bash benchmarks/gpu_session.sh tests     # the test suite on the GPU (bounded; verbose log);
+#                                                          # TESTS="tests/x.py tests/y.py::z" runs those only,
+#                                                          # DIST=load spreads one file's tests over the workers
 #   OUT=/some/dir bash benchmarks/gpu_session.sh dense     # exact grounding: culled vs dense search (fig5, fig9),
 #                                                          # then fig10/fig6s/fig7s with the dense search
 #   OUT=/some/dir bash benchmarks/gpu_session.sh refine    # the PSB-MPC + refinement benchmark (bench_refine.py)
@@ -89,7 +91,7 @@ elif [ "$what" = tests ]; then
   # the project's addopts name pytest-rerunfailures, which the device image lacks: replaced here. SIGINT at the
   # bound lets pytest print the failures' tracebacks and the summary (a plain kill loses both)
   timeout -s INT -k 30 "${TEST_TIMEOUT:-300}" python3 -m pytest -v -ra --tb=short -o addopts="" -n "${WORKERS:-12}" \
-    --dist loadfile -p no:cacheprovider --timeout 240 -W ignore > "$OUT/tests_gpu.log" 2>&1
+    --dist "${DIST:-loadfile}" -p no:cacheprovider --timeout 240 -W ignore ${TESTS:-} > "$OUT/tests_gpu.log" 2>&1
   echo "pytest exit: $?" | tee -a "$OUT/tests_gpu.log"
   grep -cE " PASSED" "$OUT/tests_gpu.log"; grep -E " FAILED| ERROR" "$OUT/tests_gpu.log" | head -40
   tail -5 "$OUT/tests_gpu.log"
