@@ -6,6 +6,8 @@ expensive one the issue measured (the chunking is the same code for every estima
 
 from __future__ import annotations
 
+import functools
+
 import jax
 import numpy as np
 
@@ -37,7 +39,11 @@ def test_chunk_size_does_not_change_the_answers():
     c0, f0, n0 = outs[512]
     assert 512 < n0 < 1024 and (n0 % 512) % 64 and n0 % 25, n0      # partial chunks in every loop
     assert np.count_nonzero(c0) > 10 and np.all(f0 <= c0)
+    # bit equality on the CPU; a GPU fuses each chunk shape differently (FMA contraction), and an H100 gave
+    # 1-ulp differences (3.4e-16 relative) between 512- and 25-row chunks, so there a few ulp are allowed
+    same = (np.testing.assert_array_equal if jax.default_backend() == "cpu"
+            else functools.partial(np.testing.assert_allclose, rtol=8 * np.finfo(np.float64).eps, atol=0))
     for cr, (c, f, n) in outs.items():
         assert n == n0
-        np.testing.assert_array_equal(c, c0, err_msg=f"chunk_rows={cr}")
-        np.testing.assert_array_equal(f, f0, err_msg=f"chunk_rows={cr}")
+        same(c, c0, err_msg=f"chunk_rows={cr}")
+        same(f, f0, err_msg=f"chunk_rows={cr}")

@@ -53,7 +53,7 @@ def test_kf_gains_hand_values():
     assert np.all(np.diff(K) <= 0) and np.all(np.diff(K[:20]) < 0)
     K32 = np.asarray(mk.kf_gains(50, 5e-5, 1e-3, 0.3, dtype=jnp.float32))
     assert K32.dtype == np.float32
-    np.testing.assert_allclose(K32, K[:50], rtol=1e-5)
+    np.testing.assert_allclose(K32, K[:50], rtol=2e-6)           # V = K r_P: no cancellation (2.4e-7 on a CPU)
 
 
 @pytest.mark.parametrize("P0", [0.0, 0.4])

@@ -292,7 +292,9 @@ def test_shift_controls():
 def test_step_from_a_previous_plan_keeps_the_safeguard_and_resolving_from_its_own_plan_is_no_worse():
     """With the previous plan as start 1 the kept sequence is still never worse than Ψ (J_d, violation); and
     re-solving the same situation with the first solve's kept sequence as the previous plan ends at a J_d no
-    higher than the first (that start is already a feasible local optimum)."""
+    higher than the first: the safeguard's reference is the best of the starts themselves, and that start is
+    feasible at the first solve's J_d.  (The solver's own result from it need not be: the augmented Lagrangian
+    restarts with zero multipliers, and on an H100 it ended 4e-4 higher; only the safeguard guarantees this.)"""
     rng = np.random.default_rng(5)
     for _ in range(3):
         state0, target = random_situation(rng)
@@ -302,9 +304,12 @@ def test_step_from_a_previous_plan_keeps_the_safeguard_and_resolving_from_its_ow
         for st in (first, again):
             assert float(st.cost) <= float(st.warm_cost) * (1 + 1e-12) + 1e-12
             assert float(st.violation) <= 1e-3
+            if bool(st.used_warm):                                   # the kept start, unchanged
+                np.testing.assert_array_equal(np.asarray(st.controls), np.asarray(st.starts[int(st.warm_index)]))
+        assert int(first.warm_index) == 0                            # Ψ: the behaviours miss its terminal state
         np.testing.assert_array_equal(np.asarray(again.starts[1]), np.asarray(first.controls))
-        assert float(again.start_cost[1]) <= float(first.cost) + 1e-6 * abs(float(first.cost))
-        assert float(again.cost) <= float(first.cost) + 1e-6 * abs(float(first.cost))
+        assert int(again.warm_index) in (0, 1)
+        assert float(again.cost) <= float(first.cost) * (1 + 1e-12) + 1e-12
 
 
 @pytest.mark.parametrize("kw, match", [

@@ -67,7 +67,9 @@ def kf_gains(n: int, q_P=DEFAULT_Q_P, r_P=DEFAULT_R_P, V0=DEFAULT_V0, dtype=None
 
     def step(v_prior, _):
         k = v_prior / (v_prior + r)
-        return (1.0 - k) * v_prior + q, k
+        # V_k = (1 − K_k) V⁻_k written as K_k r_P (the same number): 1 − K_0 ≈ 0.003 cancels about 2.5 digits,
+        # which cost float32 up to 1e-5 relative error on a GPU (2e-6 on the CPU); K r_P has no cancellation
+        return k * r + q, k
 
     _, K = jax.lax.scan(step, v0, None, length=n)
     return K

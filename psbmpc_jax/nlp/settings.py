@@ -233,13 +233,15 @@ class MultistartResult(NamedTuple):
 
 
 class Safeguarded(NamedTuple):
-    """Result of :func:`psbmpc_jax.nlp.safeguard`: the kept control sequence, its cost and violation, and
-    ``used_warm`` (True when the warm start replaced the solver's result)."""
+    """Result of :func:`psbmpc_jax.nlp.safeguard`: the kept control sequence, its cost and violation,
+    ``used_warm`` (True when the warm start replaced the solver's result) and ``warm_index`` (int32: which of a
+    stack of warm starts was the reference; 0 for a single warm start)."""
 
     u: jax.Array
     f: jax.Array
     max_violation: jax.Array
     used_warm: jax.Array
+    warm_index: jax.Array
 
 
 __all__ = ["SolverSettings", "SolverResult", "MultistartResult", "Safeguarded", "STATUS_NAMES", "CONVERGED",

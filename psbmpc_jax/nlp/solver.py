@@ -379,17 +379,29 @@ def _better_or_equal(fa, va, fb, vb, tol):
 def _safeguard(result: SolverResult, u_warm, f: Callable, *, lower=None, upper=None, eq=None, ineq=None,
                args=None, tol=1e-3) -> Safeguarded:
     u_warm = jnp.asarray(u_warm, result.u.dtype)
-    if u_warm.shape != result.u.shape:
-        raise ValueError(f"u_warm must have the result's shape {result.u.shape}, got {u_warm.shape}")
+    stacked = u_warm.ndim == result.u.ndim + 1
+    if (u_warm.shape[1:] if stacked else u_warm.shape) != result.u.shape:
+        raise ValueError(f"u_warm must have the result's shape {result.u.shape} or be a stack [W, "
+                         f"{', '.join(map(str, result.u.shape))}] of warm starts, got {u_warm.shape}")
+    if stacked and u_warm.shape[0] == 0:
+        raise ValueError("u_warm must hold at least one warm start, got an empty stack")
     tol = jnp.asarray(tol, result.u.dtype)
-    f_w = _objective(f, args, result.u.dtype)(u_warm)
-    v_w = max_violation(u_warm, lower=lower, upper=upper, eq=eq, ineq=ineq, args=args)
+    objective = _objective(f, args, result.u.dtype)
+    violation = partial(max_violation, lower=lower, upper=upper, eq=eq, ineq=ineq, args=args)
+    if stacked:                                   # the reference: the best of the warm starts themselves
+        f_all, v_all = jax.vmap(objective)(u_warm), jax.vmap(violation)(u_warm)
+        index = best_index(f_all, v_all, tol)
+        u_warm, f_w, v_w = u_warm[index], f_all[index], v_all[index]
+    else:
+        index = jnp.asarray(0, jnp.int32)
+        f_w, v_w = objective(u_warm), violation(u_warm)
     warm_ok = jnp.isfinite(f_w) & jnp.isfinite(v_w)
     keep = _better_or_equal(result.f, result.max_violation, f_w, v_w, tol)
     keep = keep & ~((result.status == NON_FINITE) & warm_ok)
     use_warm = ~keep
     return Safeguarded(u=jnp.where(use_warm, u_warm, result.u), f=jnp.where(use_warm, f_w, result.f),
-                       max_violation=jnp.where(use_warm, v_w, result.max_violation), used_warm=use_warm)
+                       max_violation=jnp.where(use_warm, v_w, result.max_violation), used_warm=use_warm,
+                       warm_index=index)
 
 
 _safeguard_jit = jax.jit(_safeguard, static_argnames=_STATIC_FNS)
@@ -400,14 +412,18 @@ def safeguard(result: SolverResult, u_warm, f: Callable, *, lower=None, upper=No
     """Keep the solver's result only if it is at least as good as the warm start.
 
     Evaluates f and the max violation (the solver's measure, box included) at ``u_warm`` and returns
-    :class:`Safeguarded` ``(u, f, max_violation, used_warm)``: the warm start (``used_warm=True``) when the
-    result is less feasible (the warm start feasible -- violation <= tol -- and the result not, or both
+    :class:`Safeguarded` ``(u, f, max_violation, used_warm, warm_index)``: the warm start (``used_warm=True``)
+    when the result is less feasible (the warm start feasible -- violation <= tol -- and the result not, or both
     infeasible and the result's violation larger), when both are feasible and the result's f is higher, or
-    when the result's status is 3 (non-finite) and the warm start is finite.  Ties keep the result.  Jitted
-    (f, eq, ineq static); also usable inside jit.
+    when the result's status is 3 (non-finite) and the warm start is finite.  Ties keep the result.
+
+    ``u_warm`` is one warm start (the result's shape) or a stack ``[W, ...]`` of them; with a stack the
+    reference is the best of the warm starts themselves by :func:`best_index` (feasible first, then the lowest
+    f, ties to the lower index), whose index is ``warm_index`` (0 for a single warm start), so the kept
+    sequence is never worse than any of them.  Jitted (f, eq, ineq static); also usable inside jit.
     """
     u_warm = _float_array(u_warm, result.u.dtype)
-    shape = u_warm.shape
+    shape = result.u.shape
     return _safeguard_jit(result, u_warm, f, lower=_bound(lower, -jnp.inf, shape, u_warm.dtype, "lower"),
                           upper=_bound(upper, jnp.inf, shape, u_warm.dtype, "upper"), eq=eq, ineq=ineq,
                           args=_as_arrays(args), tol=_as_arrays(tol))

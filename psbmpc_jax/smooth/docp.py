@@ -13,8 +13,8 @@ C-000-8) at steps 1..N_mpc.  Solved by :func:`psbmpc_jax.nlp.solve_docp` (augmen
 map, settings :data:`DOCP_SOLVER` unless given) from the warm start Ψ (the init stage's offsets) and, with
 ``n_starts > 1``, also from the ``n_starts − 1`` best constant behaviours of the init stage's first inner step
 (:func:`psbmpc_jax.nlp.solve_multistart`, ``batch="map"`` or ``"vmap"``); the best feasible result
-(:func:`psbmpc_jax.nlp.best_index`) then passes the safeguard: a result worse or less feasible than the warm
-start Ψ is replaced by Ψ.
+(:func:`psbmpc_jax.nlp.best_index`) then passes the safeguard: a result worse or less feasible than the best
+of the starts themselves (Ψ, or the previous plan when that is feasible and cheaper) is replaced by that start.
 
 **χ_d inside the DOCP (our reading, see docs/smooth_sbmpc.md):** route LOS, the same guidance as the init
 stage, rather than LOS on the segment p(τ₀) → p_T (SPEC choice C-000-7).  With the same guidance the warm
@@ -135,9 +135,9 @@ class SmoothStep(NamedTuple):
 
     Attributes:
         apply: the offsets to apply now ``[2]`` (U_m, χ_m).
-        controls: the kept sequence ``[N_mpc, 2]`` (refined, or the warm start Ψ when ``used_warm``).
+        controls: the kept sequence ``[N_mpc, 2]`` (refined, or the start ``warm_index`` when ``used_warm``).
         cost: its J_d.  violation: its max constraint violation (terminal, corridor, box).
-        used_warm: the safeguard fell back to the warm start Ψ.
+        used_warm: the safeguard kept an unrefined start (``warm_index``) instead of the solver's best result.
         solver: the :class:`~psbmpc_jax.nlp.SolverResult` of the best start.
         init: the init stage's :class:`InitResult` (Ψ, offsets, …).  corridor: the corridor of Ψ, steps 0..N_mpc.
         warm_cost: J_d of the warm start Ψ.
@@ -146,6 +146,10 @@ class SmoothStep(NamedTuple):
         start_cost, start_violation: J_d and violation of each start's result ``[S]``.
         best: index of the start whose result went into the safeguard (int32).
         iterations: inner solver iterations summed over the starts (int32).
+        warm_index: the start the safeguard compared with (int32): the best of the starts themselves by
+            :func:`psbmpc_jax.nlp.best_index` (feasible first, then the lowest J_d, ties to the lower index), so 0
+            (Ψ, feasible by construction) unless another start -- in practice the previous plan -- is feasible
+            and cheaper.
     """
 
     apply: jax.Array
@@ -162,6 +166,7 @@ class SmoothStep(NamedTuple):
     start_violation: jax.Array
     best: jax.Array
     iterations: jax.Array
+    warm_index: jax.Array
 
 
 class Previous(NamedTuple):
@@ -237,12 +242,12 @@ def prepare_step(state0, route, targets, last, segment, land, buffered_land, wei
 def solve_step(prep: Prepared, solver: SolverSettings, *, settings: SmoothSettings, batch: str) -> SmoothStep:
     """Traceable second part of a step: the DOCP from every start (one start: :func:`solve_docp`; several:
     :func:`solve_multistart` with ``batch``), the best start (:func:`psbmpc_jax.nlp.best_index`), the safeguard
-    against the warm start Ψ (row 0 of the starts)."""
+    against the best of the starts themselves (Ψ, row 0, unless another start is feasible and cheaper)."""
     f, eq, ineq = problem(settings)
     args, starts = prep.args, prep.starts
     n_starts, n = starts.shape[0], starts.shape[1]
     lower, upper = bounds(n, starts.dtype)
-    warm = starts[0]
+    warm = starts[0]                                                    # Ψ
     if n_starts == 1:
         result = solve_docp(f, warm, lower=lower, upper=upper, eq=eq, ineq=ineq, settings=solver, args=args)
         best = jnp.asarray(0, jnp.int32)
@@ -254,9 +259,11 @@ def solve_step(prep: Prepared, solver: SolverSettings, *, settings: SmoothSettin
         result = multi.best_result()
         all_f, all_v = multi.results.f, multi.results.max_violation
         iters = jnp.sum(multi.results.inner_iterations).astype(jnp.int32)
-    kept = safeguard(result, warm, f, lower=lower, upper=upper, eq=eq, ineq=ineq, args=args, tol=solver.tol)
+    # the reference of the safeguard: the best of the starts themselves (feasible first, then J_d; ties keep
+    # Ψ), so the kept sequence is never worse than Ψ nor than any other start, the previous plan included
+    kept = safeguard(result, starts, f, lower=lower, upper=upper, eq=eq, ineq=ineq, args=args, tol=solver.tol)
     return SmoothStep(kept.u[0], kept.u, kept.f, kept.max_violation, kept.used_warm, result, prep.init,
-                      prep.corridor, f(warm, args), starts, all_f, all_v, best, iters)
+                      prep.corridor, f(warm, args), starts, all_f, all_v, best, iters, kept.warm_index)
 
 
 def step_traced(state0, route, targets, last, segment, land, buffered_land, weights, model, solver, *,
