@@ -152,8 +152,9 @@ def test_multistart_vmap_equals_map_equals_a_loop_of_single_solves():
         # the best start: the same one, or one whose cost ties with it to rounding (starts reaching one optimum)
         k = int(st.best)
         assert k == best or abs(loop_f[k] - loop_f[best]) <= 1e-7 * abs(loop_f[best]), b
-        kept = safeguard(loop[k], prep.starts[0], f, lower=lower, upper=upper, eq=eq, ineq=ineq, args=prep.args,
-                         tol=DOCP_SOLVER.tol)
+        kept = safeguard(loop[k], prep.starts, f, lower=lower, upper=upper, eq=eq, ineq=ineq, args=prep.args,
+                         tol=DOCP_SOLVER.tol)                 # against the best of the starts, as the step does
+        assert int(st.warm_index) == int(kept.warm_index)
         np.testing.assert_allclose(np.asarray(st.controls), np.asarray(kept.u), rtol=0, atol=1e-7)
         assert float(st.cost) == pytest.approx(float(kept.f), rel=1e-7)
         assert bool(st.used_warm) == bool(kept.used_warm)
