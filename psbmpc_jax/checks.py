@@ -11,7 +11,10 @@ allowed:
 * :func:`integer` — an integer (not bool; NumPy integers accepted) with a lower and optional upper bound;
 * :func:`multiple_of` — the number of steps a duration holds, which must be a whole multiple of the step;
 * :func:`course` / :func:`speed` — an angle in radians (refusing degrees by mistake) and a plausible ship speed;
-* :func:`prng_key` — the PRNG key of the ``mc`` / ``ce`` estimators.
+* :func:`prng_key` — the PRNG key of the ``mc`` / ``ce`` estimators;
+* :func:`control_plan` — a previous plan of per-step controls ``[..., n, 2]`` handed back as a start (the
+  refinement's ``PlannerState.warm_start``, Smooth-SBMPC's ``previous``): numeric, of its shape, finite or NaN
+  throughout (no plan), inside the solver's box.
 
 Plausibility limits shared by the Python API and the scenario files are module constants
 (:data:`MAX_SPEED_MPS`, :data:`MAX_ANGLE_RAD`).
@@ -183,3 +186,31 @@ def prng_key(key, name: str = "key"):
     raise ValueError(f"{name} must be a JAX PRNG key (jax.random.key(seed), or a raw uint32[2] from "
                      f"jax.random.PRNGKey), got {type(key).__name__} with dtype {dtype} and shape "
                      f"{np.shape(key) if dtype is not None else '-'}; {hint}")
+
+
+def control_plan(value, name: str, *, n: int, lower, upper, box: str, what: str, lead: tuple = (),
+                 missing_ok: bool = True, tol: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:
+    """A previous plan of per-step controls ``lead + [n, 2]`` (``what`` names the two columns) as
+    ``(controls float64, missing)``.  ``missing`` (shape ``lead``) marks a plan that is NaN throughout: no
+    previous plan (for a run of a batch, or with ``missing_ok`` for the single plan; otherwise an error).  A
+    partly non-finite plan is an error, and so is a control outside ``[lower, upper]`` (per column, ``tol``
+    slack) -- ``box`` says that box in words.  ``ValueError`` names ``name`` and what is allowed."""
+    a = np.asarray(value)
+    if a.dtype.kind not in "iuf":
+        raise ValueError(f"{name} must be numeric, got dtype {a.dtype}")
+    a = a.astype(np.float64)
+    if a.shape != (*lead, n, 2):
+        raise ValueError(f"{name} must be {list(lead) + [n, 2]} ({what}) per step, got shape {a.shape}")
+    missing = np.all(np.isnan(a), axis=(-2, -1))
+    if not lead and not missing_ok:
+        missing = np.zeros((), bool)
+    if np.any(~np.isfinite(a) & ~missing[..., None, None]):
+        raise ValueError(f"{name} must be finite (NaN throughout means: no previous plan"
+                         f"{' for that run' if lead else ''})" if lead or missing_ok else
+                         f"{name} must be finite")
+    lo, hi = np.asarray(lower, np.float64), np.asarray(upper, np.float64)
+    inside = missing[..., None, None] | ((a >= lo - tol) & (a <= hi + tol))
+    if not np.all(inside):
+        raise ValueError(f"{name} must lie in {box}")
+    return a, missing
+

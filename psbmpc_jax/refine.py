@@ -40,6 +40,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax import lax
 
+from . import checks
 from .costs.base import Context, TermValue, check_terms, cost_term
 from .costs.collision import CollisionTerm, collision_probability
 from .costs.colregs import ColregsTerm
@@ -654,21 +655,16 @@ def refine(inputs: SolveInputs, plan: Plan, state: PlannerState, params: Params,
 def previous_plan(warm_start, n: int, dtype):
     """``PlannerState.warm_start`` as the previous-plan start ``(controls [n, 2], valid)``: None or NaN
     throughout -> not valid; otherwise finite per-step (speed factor, course offset [rad]) controls ``[n, 2]``
-    with speed factors in [0, 1] and |offset| <= pi (``ValueError`` naming the field)."""
+    with speed factors in [0, 1] and |offset| <= pi (:func:`psbmpc_jax.checks.control_plan`, ``ValueError``
+    naming the field)."""
     if warm_start is None:
         return np.zeros((n, 2), dtype), np.asarray(False)
-    a = np.asarray(warm_start)
-    if a.dtype.kind not in "iuf" or a.shape != (n, 2):
-        raise ValueError(f"PlannerState.warm_start must be the previous plan's per-step controls [{n}, 2] "
-                         f"(speed factor, course offset rad), got {a.dtype} of shape {a.shape}")
-    a = a.astype(np.float64)
-    if np.all(np.isnan(a)):
+    a, missing = checks.control_plan(warm_start, "PlannerState.warm_start", n=n, lower=(0.0, -np.pi),
+                                     upper=(1.0, np.pi), what="speed factor, course offset rad", tol=1e-12,
+                                     box="the refinement's box: speed factors in [0, 1], course offsets in "
+                                         "[-pi, pi] rad")
+    if missing:
         return np.zeros((n, 2), dtype), np.asarray(False)
-    if not np.all(np.isfinite(a)):
-        raise ValueError("PlannerState.warm_start must be finite (NaN throughout means: no previous plan)")
-    if np.any(a[:, 0] < 0) or np.any(a[:, 0] > 1) or np.any(np.abs(a[:, 1]) > np.pi + 1e-12):
-        raise ValueError("PlannerState.warm_start must hold speed factors in [0, 1] and course offsets in "
-                         "[-pi, pi] rad")
     return a.astype(dtype), np.asarray(True)
 
 

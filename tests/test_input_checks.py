@@ -224,3 +224,42 @@ def test_planner_refuses_t_ts_beyond_the_horizon_and_a_bad_key():
 
         own = OwnShip([0.0, 0.0, 0.0, 2.0], [[0.0, 0.0], [500.0, 0.0]], 2.0)
         Planner(PlannerConfig(estimator="mc")).prepare(Situation(own, ()), key=12345)
+
+
+# ------------------------------------------------------------------ previous plans (refinement, Smooth-SBMPC)
+def test_control_plan_accepts_a_plan_in_the_box_and_marks_missing_ones():
+    control_plan = checks.control_plan
+    box = dict(n=3, lower=(0.1, -1.0), upper=(1.0, 1.0), box="B", what="U, chi")
+    plan = [[0.1, -1.0], [1.0, 1.0], [0.5, 0.0]]
+    a, missing = control_plan(plan, "p", **box)
+    assert a.dtype == np.float64 and not bool(missing)
+    np.testing.assert_array_equal(a, plan)
+    a, missing = control_plan(np.full((3, 2), np.nan), "p", **box)          # NaN throughout: no plan
+    assert bool(missing)
+    runs = np.stack([plan, np.full((3, 2), np.nan)])
+    a, missing = control_plan(runs, "p", lead=(2,), missing_ok=False, **box)  # a run without one
+    np.testing.assert_array_equal(missing, [False, True])
+    control_plan(np.asarray(plan) + [0.0, 1e-7], "p", **box)              # within the slack (tol 1e-6)
+
+
+@pytest.mark.parametrize("value, kw, match", [
+    (np.full((3, 2), "a"), {}, r"p must be numeric, got dtype <U1"),
+    (np.zeros((2, 2)) + 0.5, {}, r"p must be \[3, 2\] \(U, chi\) per step, got shape \(2, 2\)"),
+    (np.zeros((2, 3, 2)) + 0.5, {}, r"p must be \[3, 2\]"),
+    (np.zeros((3, 2)) + 0.5, dict(lead=(2,)), r"p must be \[2, 3, 2\]"),
+    (np.full((3, 2), np.nan), dict(missing_ok=False), r"p must be finite$"),
+    (np.where(np.eye(3, 2) > 0, np.nan, 0.5), {}, r"p must be finite \(NaN throughout means: no previous plan\)"),
+    (np.stack([np.where(np.eye(3, 2) > 0, np.inf, 0.5), np.full((3, 2), 0.5)]), dict(lead=(2,)),
+     r"NaN throughout means: no previous plan for that run"),
+    (np.zeros((3, 2)) + [1.01, 0.0], {}, r"p must lie in B"),
+    (np.zeros((3, 2)) + [0.5, -1.1], {}, r"p must lie in B"),
+    (np.zeros((3, 2)) + [0.05, 0.0], dict(tol=0.1), None),                 # the slack is the caller's
+])
+def test_control_plan_refuses_bad_plans_naming_the_field(value, kw, match):
+    control_plan = checks.control_plan
+    box = dict(n=3, lower=(0.1, -1.0), upper=(1.0, 1.0), box="B", what="U, chi")
+    if match is None:
+        control_plan(value, "p", **box, **kw)
+        return
+    with pytest.raises(ValueError, match=match):
+        control_plan(value, "p", **box, **kw)

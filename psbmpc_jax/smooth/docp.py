@@ -32,6 +32,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..checks import control_plan
 from ..costs.manoeuvring import gamma_sequence
 from ..costs.sbmpc import sbmpc_costs
 from ..nlp import BATCH_MODES, SolverResult, SolverSettings, safeguard, solve_docp, solve_multistart
@@ -292,23 +293,12 @@ def check_step_options(settings, solver, n_starts, batch):
 
 def check_previous(previous, n: int, name: str = "previous", lead: tuple = ()) -> np.ndarray:
     """A previous-plan start ``lead + [n, 2]`` (U_m, χ_m) as float64 NumPy: finite, inside the DOCP's box
-    (``ValueError`` naming ``name`` otherwise).  With ``lead`` (runs), a row that is NaN throughout means "no
-    previous plan for this run"; a partly NaN row is an error."""
-    a = np.asarray(previous)
-    if a.dtype.kind not in "iuf":
-        raise ValueError(f"{name} must be numeric, got dtype {a.dtype}")
-    a = a.astype(np.float64)
-    if a.shape != (*lead, n, 2):
-        raise ValueError(f"{name} must be {list(lead) + [n, 2]} (U_m, chi_m) per DOCP step, got shape {a.shape}")
-    missing = np.all(np.isnan(a), axis=(-2, -1)) if lead else np.zeros((), bool)
-    bad = ~np.isfinite(a) & ~missing[..., None, None]
-    if np.any(bad):
-        raise ValueError(f"{name} must be finite (a run without a previous plan: NaN throughout its rows)")
-    lo, hi = np.asarray(LOWER), np.asarray(UPPER)
-    inside = np.where(missing[..., None, None], True, (a >= lo - 1e-6) & (a <= hi + 1e-6))
-    if not np.all(inside):
-        raise ValueError(f"{name} must lie in the DOCP's box: U_m in [{LOWER[0]}, {UPPER[0]}], chi_m in "
-                         f"[-pi/2, pi/2] rad")
+    (:func:`psbmpc_jax.checks.control_plan`, ``ValueError`` naming ``name`` otherwise).  With ``lead`` (runs), a
+    row that is NaN throughout means "no previous plan for this run"; a partly NaN row is an error, and so is a
+    single plan that is NaN throughout (pass None instead)."""
+    a, _ = control_plan(previous, name, n=n, lower=LOWER, upper=UPPER, what="U_m, chi_m", lead=lead,
+                        missing_ok=False, box=f"the DOCP's box: U_m in [{LOWER[0]}, {UPPER[0]}], chi_m in "
+                                              f"[-pi/2, pi/2] rad")
     return a
 
 
