@@ -647,8 +647,9 @@ def summarize(result: SimulationResult, *, mode: str, grid_exceeded: bool | None
 
 def colav_diagnostics(info: dict | None) -> dict | None:
     """Summary of the own-ship's gradient-method diagnostics over all runs and updates (None for ``psbmpc``):
-    ``updates`` (own-ship plans), ``used_warm_fraction`` (a warm start was kept -- Ψ or, for Smooth-SBMPC with
-    ``previous_start``, the previous plan: the solver did not improve on it or was infeasible), ``nonzero_status`` (plans whose status was not 0), ``violation_max``,
+    ``updates`` (own-ship plans), ``used_warm_fraction`` (a warm start was kept instead of the solver's result -- the
+    best of the starts: Ψ, a grid behaviour or the previous plan -- because the result was not better or was
+    infeasible), ``nonzero_status`` (plans whose status was not 0), ``violation_max``,
     ``iterations_median`` and ``cost_improvement_median`` (warm-start cost minus final cost)."""
     if info is None:
         return None
