@@ -202,12 +202,11 @@ def control_plan(value, name: str, *, n: int, lower, upper, box: str, what: str,
     if a.shape != (*lead, n, 2):
         raise ValueError(f"{name} must be {list(lead) + [n, 2]} ({what}) per step, got shape {a.shape}")
     missing = np.all(np.isnan(a), axis=(-2, -1))
-    if not lead and not missing_ok:
-        missing = np.zeros((), bool)
+    hint = f" (NaN throughout means: no previous plan{' for that run' if lead else ''})"
+    if not (lead or missing_ok):                   # a single plan that must be there: NaN is no "no plan"
+        missing, hint = np.zeros((), bool), ""
     if np.any(~np.isfinite(a) & ~missing[..., None, None]):
-        raise ValueError(f"{name} must be finite (NaN throughout means: no previous plan"
-                         f"{' for that run' if lead else ''})" if lead or missing_ok else
-                         f"{name} must be finite")
+        raise ValueError(f"{name} must be finite{hint}")
     lo, hi = np.asarray(lower, np.float64), np.asarray(upper, np.float64)
     inside = missing[..., None, None] | ((a >= lo - tol) & (a <= hi + tol))
     if not np.all(inside):
