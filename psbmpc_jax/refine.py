@@ -586,20 +586,20 @@ def _refine(inputs, best, last_offsets, params, samples, evaluation, solver, pat
     k = best_index(res.f, res.max_violation, tol)
     r = jax.tree.map(lambda a: a[k], res)
 
-    # safeguard on the same smooth objective, over full per-step controls: the best warm start
-    warm_f = jax.vmap(lambda u: f_full(u, (data, None)))(warm)
-    w = jnp.argmin(jnp.where(jnp.isfinite(warm_f), warm_f, jnp.inf))
+    # safeguard on the same smooth objective, over full per-step controls, against the best of the warm starts
+    # (nlp.best_index: they are all inside the box, so the lowest finite cost, ties to the lower index)
     lower_n, upper_n = jnp.broadcast_to(lo, (n, 2)), jnp.broadcast_to(hi, (n, 2))
     u_res = full_controls(r.u, tails[k], n_ref, block)
     full = r._replace(u=u_res)
-    kept = safeguard(full, warm[w], f_full, lower=lower_n, upper=upper_n, args=(data, None), tol=tol)
+    kept = safeguard(full, warm, f_full, lower=lower_n, upper=upper_n, args=(data, None), tol=tol)
+    w = kept.warm_index
     start = jnp.where(kept.used_warm, w, k).astype(jnp.int32)
 
     data_grid = data._replace(terms=grid_terms_fast(grid_terms))
     grid = lambda u: sum(term_costs(u, data_grid, config, samples).values())  # noqa: E731
     traj = rollout(kept.u, data, config)
     trajectory = jnp.stack([traj.x[:, 0], traj.y[:, 0], traj.chi[:, 0], traj.U[:, 0]], axis=-1)
-    return Refinement(controls=kept.u, apply=kept.u[0], cost=kept.f, warm_cost=warm_f[w],
+    return Refinement(controls=kept.u, apply=kept.u[0], cost=kept.f, warm_cost=kept.warm_f[w],
                       violation=kept.max_violation, used_warm=kept.used_warm, status=r.status,
                       iterations=r.inner_iterations, start_index=start, behaviour=idx[start],
                       grid_cost=grid(kept.u), warm_grid_cost=grid(warm[w]), trajectory=trajectory,

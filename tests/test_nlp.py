@@ -274,11 +274,17 @@ def test_safeguard_falls_back_to_the_warm_start():
     out = safeguard(res, stack, quad, **kw)                      # the optimum beats every start: kept
     assert not bool(out.used_warm) and int(out.warm_index) == 2
     np.testing.assert_array_equal(np.asarray(out.u), np.asarray(res.u))
+    # f and the violation of every warm start come back (no second evaluation for a caller's report)
+    np.testing.assert_allclose(np.asarray(out.warm_f), [float(quad(u, a)) for u in stack], rtol=1e-12)
+    np.testing.assert_allclose(np.asarray(out.warm_violation),
+                               [float(max_violation(u, eq=lin_eq, args=a)) for u in stack], rtol=1e-12, atol=1e-12)
     # a stack of one is the single warm start; ties go to the lower index
     one = safeguard(fake(worse), stack[:1], quad, **kw)
     single = safeguard(fake(worse), stack[0], quad, **kw)
     assert int(one.warm_index) == int(single.warm_index) == 0
     np.testing.assert_array_equal(np.asarray(one.u), np.asarray(single.u))
+    assert np.shape(one.warm_f) == (1,) and np.shape(single.warm_f) == np.shape(single.warm_violation) == ()
+    assert float(single.warm_f) == float(one.warm_f[0]) == pytest.approx(float(quad(stack[0], a)), rel=1e-12)
     assert int(safeguard(fake(worse), jnp.stack([stack[2], stack[2]]), quad, **kw).warm_index) == 0
     # none feasible: the least violation is the reference
     out = safeguard(fake(far, INFEASIBLE), jnp.stack([far + 1.0, near, far]), quad, **kw)

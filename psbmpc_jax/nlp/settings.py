@@ -234,14 +234,18 @@ class MultistartResult(NamedTuple):
 
 class Safeguarded(NamedTuple):
     """Result of :func:`psbmpc_jax.nlp.safeguard`: the kept control sequence, its cost and violation,
-    ``used_warm`` (True when the warm start replaced the solver's result) and ``warm_index`` (int32: which of a
-    stack of warm starts was the reference; 0 for a single warm start)."""
+    ``used_warm`` (True when the warm start replaced the solver's result), ``warm_index`` (int32: which of a
+    stack of warm starts was the reference; 0 for a single warm start), and ``warm_f`` / ``warm_violation``:
+    f and the max violation of every warm start (``[W]`` for a stack, scalars for one), so a caller that
+    reports a warm start's cost need not evaluate f again."""
 
     u: jax.Array
     f: jax.Array
     max_violation: jax.Array
     used_warm: jax.Array
     warm_index: jax.Array
+    warm_f: jax.Array
+    warm_violation: jax.Array
 
 
 __all__ = ["SolverSettings", "SolverResult", "MultistartResult", "Safeguarded", "STATUS_NAMES", "CONVERGED",

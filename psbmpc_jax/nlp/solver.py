@@ -395,13 +395,14 @@ def _safeguard(result: SolverResult, u_warm, f: Callable, *, lower=None, upper=N
     else:
         index = jnp.asarray(0, jnp.int32)
         f_w, v_w = objective(u_warm), violation(u_warm)
+        f_all, v_all = f_w, v_w
     warm_ok = jnp.isfinite(f_w) & jnp.isfinite(v_w)
     keep = _better_or_equal(result.f, result.max_violation, f_w, v_w, tol)
     keep = keep & ~((result.status == NON_FINITE) & warm_ok)
     use_warm = ~keep
     return Safeguarded(u=jnp.where(use_warm, u_warm, result.u), f=jnp.where(use_warm, f_w, result.f),
                        max_violation=jnp.where(use_warm, v_w, result.max_violation), used_warm=use_warm,
-                       warm_index=index)
+                       warm_index=index, warm_f=f_all, warm_violation=v_all)
 
 
 _safeguard_jit = jax.jit(_safeguard, static_argnames=_STATIC_FNS)
@@ -412,8 +413,8 @@ def safeguard(result: SolverResult, u_warm, f: Callable, *, lower=None, upper=No
     """Keep the solver's result only if it is at least as good as the warm start.
 
     Evaluates f and the max violation (the solver's measure, box included) at ``u_warm`` and returns
-    :class:`Safeguarded` ``(u, f, max_violation, used_warm, warm_index)``: the warm start (``used_warm=True``)
-    when the result is less feasible (the warm start feasible -- violation <= tol -- and the result not, or both
+    :class:`Safeguarded` ``(u, f, max_violation, used_warm, warm_index, warm_f, warm_violation)``: the warm
+    start (``used_warm=True``) when the result is less feasible (the warm start feasible -- violation <= tol -- and the result not, or both
     infeasible and the result's violation larger), when both are feasible and the result's f is higher, or
     when the result's status is 3 (non-finite) and the warm start is finite.  Ties keep the result.
 

@@ -264,7 +264,7 @@ def solve_step(prep: Prepared, solver: SolverSettings, *, settings: SmoothSettin
     # Ψ), so the kept sequence is never worse than Ψ nor than any other start, the previous plan included
     kept = safeguard(result, starts, f, lower=lower, upper=upper, eq=eq, ineq=ineq, args=args, tol=solver.tol)
     return SmoothStep(kept.u[0], kept.u, kept.f, kept.max_violation, kept.used_warm, result, prep.init,
-                      prep.corridor, f(warm, args), starts, all_f, all_v, best, iters, kept.warm_index)
+                      prep.corridor, kept.warm_f[0], starts, all_f, all_v, best, iters, kept.warm_index)
 
 
 def step_traced(state0, route, targets, last, segment, land, buffered_land, weights, model, solver, *,
