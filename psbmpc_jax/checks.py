@@ -195,7 +195,11 @@ def control_plan(value, name: str, *, n: int, lower, upper, box: str, what: str,
     previous plan (for a run of a batch, or with ``missing_ok`` for the single plan; otherwise an error).  A
     partly non-finite plan is an error, and so is a control outside ``[lower, upper]`` (per column, ``tol``
     slack) -- ``box`` says that box in words.  ``ValueError`` names ``name`` and what is allowed."""
-    a = np.asarray(value)
+    try:
+        a = np.asarray(value)
+    except (TypeError, ValueError) as exc:                 # a ragged nesting
+        raise ValueError(f"{name} must be a numeric array {list(lead) + [n, 2]} ({what}), got {value!r} "
+                         f"({exc})"[:300]) from None
     if a.dtype.kind not in "iuf":
         raise ValueError(f"{name} must be numeric, got dtype {a.dtype}")
     a = a.astype(np.float64)

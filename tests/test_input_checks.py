@@ -244,6 +244,9 @@ def test_control_plan_accepts_a_plan_in_the_box_and_marks_missing_ones():
 
 @pytest.mark.parametrize("value, kw, match", [
     (np.full((3, 2), "a"), {}, r"p must be numeric, got dtype <U1"),
+    ([[0.5, 0.0], [0.5], [0.5, 0.0]], {}, r"p must be a numeric array \[3, 2\] \(U, chi\), got \[\[0.5"),
+    (np.zeros((3, 2), bool), {}, r"p must be numeric, got dtype bool"),
+    ([[0.5, None], [0.5, 0.0], [0.5, 0.0]], {}, r"p must be numeric, got dtype object"),
     (np.zeros((2, 2)) + 0.5, {}, r"p must be \[3, 2\] \(U, chi\) per step, got shape \(2, 2\)"),
     (np.zeros((2, 3, 2)) + 0.5, {}, r"p must be \[3, 2\]"),
     (np.zeros((3, 2)) + 0.5, dict(lead=(2,)), r"p must be \[2, 3, 2\]"),
