@@ -4,6 +4,7 @@ compiled evaluator)."""
 
 from __future__ import annotations
 
+import gc
 import math
 import os
 
@@ -30,6 +31,48 @@ from psbmpc_jax.behaviours import enumerate_behaviours_deg  # noqa: E402
 from psbmpc_jax.packing import (BehaviourArrays, ChartArrays, ObstacleArrays, OwnShipArrays,  # noqa: E402
                                 SolveInputs, WorldArrays)
 from psbmpc_jax.situation import Obstacle, OwnShip, Situation  # noqa: E402
+
+
+# ------------------------------------------------------------------------------------------ memory maps
+#: XLA:CPU keeps about 18 memory mappings per compiled program, and JAX's caches keep every program alive.  A
+#: process that compiles ~3 500 programs reaches Linux's ``vm.max_map_count`` (65 530 by default): LLVM then fails
+#: with "Cannot allocate memory" and the process segfaults.  That was the "random" worker crash of the full suite
+#: (README "Tests"; reproduced with 2 750 small jitted functions at 64 461 maps).  After a test, when the worker
+#: holds more than this share of the limit, JAX's caches are cleared; later tests compile again what they need.
+MAP_SHARE = 0.5
+
+
+def map_count(path: str = "/proc/self/maps") -> int | None:
+    """The number of memory mappings of this process (None where ``/proc`` is not available)."""
+    try:
+        with open(path, "rb") as fh:
+            return sum(1 for _ in fh)
+    except OSError:
+        return None
+
+
+def map_limit(path: str = "/proc/sys/vm/max_map_count") -> int | None:
+    """The kernel's limit on memory mappings per process (None where it cannot be read)."""
+    try:
+        with open(path, encoding="ascii") as fh:
+            return int(fh.read().strip())
+    except (OSError, ValueError):
+        return None
+
+
+def release_compiled_programs(share: float = MAP_SHARE, count=map_count, limit=map_limit) -> bool:
+    """Clear JAX's caches (``jax.clear_caches``) when the mappings exceed ``share`` of the limit; True if it did."""
+    n, cap = count(), limit()
+    if n is None or cap is None or n <= share * cap:
+        return False
+    jax.clear_caches()
+    gc.collect()
+    return True
+
+
+@pytest.hookimpl(trylast=True)
+def pytest_runtest_teardown(item, nextitem):
+    release_compiled_programs()
 
 
 def pytest_configure(config):
