@@ -28,6 +28,11 @@ STOP_FACTOR = 0.05
 STOP_SPEED = 0.2
 
 
+def first_maneuver_stops(behaviours) -> np.ndarray:
+    """Per behaviour ``[B, n_M, 2]``: does its first maneuver stop (speed factor < STOP_FACTOR)?"""
+    return np.asarray(behaviours)[..., 0, 0] < STOP_FACTOR
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--runs", type=int, default=15)
@@ -43,16 +48,14 @@ def main(argv=None) -> int:
     from psbmpc_jax.sim import colav, simulate
 
     started_at = commit()
-    seen = []
+    seen, terms_seen = [], []
     original = colav._Solver._refine_one
-
-    terms_seen = []
 
     def recording(self, inputs, plan, state, evaluation):
         ref = original(self, inputs, plan, state, evaluation)
         seen.append((int(np.asarray(plan.best)), float(np.asarray(ref.apply)[0]), int(ref.behaviour)))
-        total = np.asarray(evaluation.total, np.float64)
-        terms_seen.append((total, {k: np.asarray(v, np.float64) for k, v in evaluation.costs.items()}))
+        terms_seen.append((np.asarray(evaluation.total, np.float64),
+                           {k: np.asarray(v, np.float64) for k, v in evaluation.costs.items()}))
         return ref
 
     colav._Solver._refine_one = recording
@@ -75,7 +78,7 @@ def main(argv=None) -> int:
     from_previous = np.array([s[2] == -1 for s in seen]).reshape(M, R)
     k = np.searchsorted(res.t, res.solve_t)
     stopped = res.states[:, 0, k, 3].T <= STOP_SPEED                                   # [M, R]
-    grid_stop = behaviours[best][..., 0, 0] < STOP_FACTOR                                # [M, R]
+    grid_stop = first_maneuver_stops(behaviours)[best]                                   # [M, R]
     refined_stop = applied_u < STOP_FACTOR
     runs = []
     for r in range(R):
@@ -87,13 +90,14 @@ def main(argv=None) -> int:
                      "refined_stop_while_grid_moves": int((f & ~g).sum()),
                      "kept_previous_plan_start": int(from_previous[:, r].sum())})
     total = {key: int(sum(x[key] for x in runs)) for key in runs[0] if key not in ("run", "longest_stop_s")}
-    why = why_stop(terms_seen, behaviours, best, stopped, M, R)
+    why = why_stop(terms_seen, behaviours, best, stopped)
     doc = {"scenario": "nidelva", "method": "psbmpc_refine", "runs": R, "seed": sc.seed, "updates_per_run": M,
            "start_margin": args.start_margin,
            "mean_abs_course_rate_deg_s": float(np.mean([x["mean_abs_course_rate_deg_s"] for x in res.metrics])),
            "collisions": res.summary["collisions"], "groundings": res.summary["groundings"],
            "stop_speed_factor_below": STOP_FACTOR, "stopped_speed_m_s_at_most": STOP_SPEED, "per_run": runs,
-           "total": total, "why_the_grid_stops": why, "commit": started_at, "device": str(jax.devices()[0]), "platform": platform.platform(),
+           "total": total, "why_the_grid_stops": why, "commit": started_at, "device": str(jax.devices()[0]),
+           "platform": platform.platform(),
            "versions": {"python": sys.version.split()[0], "jax": jax.__version__, "numpy": np.__version__},
            "command": "python scripts/nidelva_stop_analysis.py " + " ".join(argv if argv is not None else sys.argv[1:]),
            "utc": dt.datetime.now(dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")}
@@ -107,39 +111,37 @@ def main(argv=None) -> int:
     return 0
 
 
-def why_stop(terms_seen, behaviours, best, stopped, M: int, R: int) -> dict:
+def why_stop(terms_seen, behaviours, best, stopped) -> dict:
     """At every update where the grid search chose a stop (first maneuver's speed factor < STOP_FACTOR): the
     chosen behaviour's cost per term against the cheapest behaviour whose first maneuver moves, and which term
     decides (the largest positive share of the gap cost(moving) - cost(stop)).  Split by whether the own-ship
     was already stopped at the update (then the path term's speed-change cost to set off counts against
-    moving)."""
-    moving = behaviours[:, 0, 0] >= STOP_FACTOR                       # [B]: the first maneuver moves
+    moving).  ``terms_seen`` holds one (total, {term: cost}) per (update, run) in the order of ``best`` and
+    ``stopped`` ``[M, R]``."""
+    stops = first_maneuver_stops(behaviours)                          # [B]
+    n_b = len(behaviours)
     names = sorted(terms_seen[0][1])
     rows = {"already_stopped": [], "moving": []}
-    for i, (total, costs) in enumerate(terms_seen):
-        m, r = divmod(i, R)
-        b = best[m, r]
-        if behaviours[b, 0, 0] >= STOP_FACTOR:
+    for (total, costs), b, was_stopped in zip(terms_seen, np.ravel(best), np.ravel(stopped)):
+        if not stops[b]:
             continue
-        n_b = len(behaviours)
         parts = np.stack([costs[k][:n_b] for k in names])             # [K, B]
         if not np.allclose(parts.sum(0), total[:n_b], rtol=1e-4, atol=1e-6):
             raise RuntimeError("the evaluation's total is not the sum of its terms; the decomposition needs it")
-        alt = np.where(moving & np.isfinite(total[:n_b]), total[:n_b], np.inf)
+        alt = np.where(~stops & np.isfinite(total[:n_b]), total[:n_b], np.inf)
         j = int(np.argmin(alt))
         gap = parts[:, j] - parts[:, b]                               # > 0: the term favours the stop
-        rows["already_stopped" if stopped[m, r] else "moving"].append(
+        rows["already_stopped" if was_stopped else "moving"].append(
             {"gap": float(total[j] - total[b]), "terms": dict(zip(names, gap.tolist())),
              "decides": names[int(np.argmax(gap))]})
 
     def summary(rs):
         if not rs:
             return {"updates": 0}
-        out = {"updates": len(rs), "median_gap": float(np.median([x["gap"] for x in rs])),
-               "decided_by": {k: sum(x["decides"] == k for x in rs) for k in names},
-               "median_term_gap": {k: float(np.median([x["terms"][k] for x in rs])) for k in names},
-               "updates_where_term_favours_stop": {k: sum(x["terms"][k] > 0 for x in rs) for k in names}}
-        return out
+        return {"updates": len(rs), "median_gap": float(np.median([x["gap"] for x in rs])),
+                "decided_by": {k: sum(x["decides"] == k for x in rs) for k in names},
+                "median_term_gap": {k: float(np.median([x["terms"][k] for x in rs])) for k in names},
+                "updates_where_term_favours_stop": {k: sum(x["terms"][k] > 0 for x in rs) for k in names}}
 
     return {"what": "grid search's stop choice vs the cheapest behaviour whose first maneuver moves: per-term "
                     "cost(moving) - cost(stop) (> 0 favours the stop); 'decides' = the term with the largest "

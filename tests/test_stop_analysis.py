@@ -39,7 +39,7 @@ def test_why_stop_decomposes_the_gap_to_the_cheapest_moving_behaviour(script):
     ]
     best = np.array([[0, 1], [0, 3]])
     stopped = np.array([[False, False], [True, True]])
-    why = script.why_stop(seen, behaviours, best, stopped, M=2, R=2)
+    why = script.why_stop(seen, behaviours, best, stopped)
     moving, still = why["moving"], why["already_stopped"]
     assert moving["updates"] == 1 and still["updates"] == 2
     assert moving["decided_by"] == {"colregs": 0, "do": 1, "path": 0, "so": 0}
@@ -54,11 +54,11 @@ def test_why_stop_refuses_a_total_that_is_not_the_sum_of_its_terms(script):
     behaviours = np.array([[[0.0, 0.0]], [[1.0, 0.0]]])
     total, parts = update([(0, 1, 2, 0), (0, 5, 1, 1)])
     with pytest.raises(RuntimeError, match="not the sum of its terms"):
-        script.why_stop([(total + 1.0, parts)], behaviours, np.array([[0]]), np.array([[False]]), M=1, R=1)
+        script.why_stop([(total + 1.0, parts)], behaviours, np.array([[0]]), np.array([[False]]))
 
 
 def test_why_stop_with_no_stop_counts_nothing(script):
     behaviours = np.array([[[0.0, 0.0]], [[1.0, 0.0]]])
     why = script.why_stop([update([(0, 1, 2, 0), (0, 0, 1, 0)])], behaviours, np.array([[1]]),
-                          np.array([[False]]), M=1, R=1)
+                          np.array([[False]]))
     assert why["moving"] == {"updates": 0} and why["already_stopped"] == {"updates": 0}

@@ -414,9 +414,10 @@ def safeguard(result: SolverResult, u_warm, f: Callable, *, lower=None, upper=No
 
     Evaluates f and the max violation (the solver's measure, box included) at ``u_warm`` and returns
     :class:`Safeguarded` ``(u, f, max_violation, used_warm, warm_index, warm_f, warm_violation)``: the warm
-    start (``used_warm=True``) when the result is less feasible (the warm start feasible -- violation <= tol -- and the result not, or both
-    infeasible and the result's violation larger), when both are feasible and the result's f is higher, or
-    when the result's status is 3 (non-finite) and the warm start is finite.  Ties keep the result.
+    start (``used_warm=True``) when the result is less feasible (the warm start feasible -- violation <= tol --
+    and the result not, or both infeasible and the result's violation larger), when both are feasible and the
+    result's f is higher, or when the result's status is 3 (non-finite) and the warm start is finite.  Ties
+    keep the result.
 
     ``u_warm`` is one warm start (the result's shape) or a stack ``[W, ...]`` of them; with a stack the
     reference is the best of the warm starts themselves by :func:`best_index` (feasible first, then the lowest
