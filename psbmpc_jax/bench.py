@@ -46,6 +46,11 @@ points are written as skipped):
   (``psbmpc-bench-refine/1``, one JSON line per slot, fields :data:`REFINE_FIELDS`); ``psbmpc-jax report``
   does not read them.  ``benchmarks/bench_refine.py`` runs the same and writes one JSON document.
 
+Depth (``--depth``): instead of timing, every point's solve step is run once through
+:func:`psbmpc_jax.depth.sequential_depth_only` and its loop iterations are counted (the GPU latency floor); one
+``psbmpc-depth/1`` record per point (docs/bench_schema.md), in a file of its own (``psbmpc-jax report`` does not
+read them).  ``--layout-platform gpu`` counts the GPU's layouts on any machine.
+
 Per point and platform: compile time (``lower().compile()``), ``--warmup`` untimed calls, ``--repeats`` timed
 calls with ``block_until_ready``, statistics, peak memory (device ``memory_stats()["peak_bytes_in_use"]``,
 a process-lifetime peak, where the device reports it; else the growth of the process peak RSS during the
@@ -303,9 +308,9 @@ def add_bench_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--estimator", choices=ESTIMATORS, default="quadrature")
     p.add_argument("--dtype", choices=("float32", "float64"), default="float32")
     p.add_argument("--grounding", choices=("exact", "grid"), default="exact", help="grounding mode")
-    p.add_argument("--grounding-search", choices=("auto", "culled", "dense"), default="auto",
+    p.add_argument("--grounding-search", choices=("auto", "culled", "dense", "flat"), default="auto",
                    help="exact mode's layout (PlannerConfig.grounding_search; default auto: culled on the CPU, "
-                        "dense on a GPU; records hold the one used)")
+                        "flat on a GPU; records hold the one used)")
     p.add_argument("--n-m", type=int, choices=(1, 2), default=None,
                    help="paper behaviour set for sweeps other than n_cbs: 1 -> 39, 2 -> 1014 (default)")
     p.add_argument("--n-ps", type=odd_int, default=None, help="scenarios per obstacle when not swept (odd, "
@@ -331,6 +336,13 @@ def add_bench_arguments(p: argparse.ArgumentParser) -> None:
                    "current folder)")
     p.add_argument("--seed", type=int, default=0, help="PRNG seed of the mc/ce sample table")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.add_argument("--depth", action="store_true",
+                   help="instead of timing, count the loop iterations each point's solve executes (the GPU latency "
+                        "floor, psbmpc_jax.depth): one psbmpc-depth/1 record per point, its table printed unless "
+                        "--quiet; the --out file must not hold timing records")
+    p.add_argument("--layout-platform", choices=("cpu", "gpu"), default=None,
+                   help="choose the configuration's auto layouts as on this platform (default: the platform the "
+                        "point runs on); with --depth, count a GPU program's loops on the CPU")
 
 
 def build_plan(args) -> list[Point]:
@@ -340,6 +352,16 @@ def build_plan(args) -> list[Point]:
                          "{n_cbs,n_ps,n_do,n_so,n_vertices} with --values")
     if args.preset is not None and args.values is not None:
         raise ValueError("--values only goes with --sweep, not with --preset")
+    if getattr(args, "depth", False):
+        if args.preset == "refine":
+            raise ValueError("--depth does not apply to --preset refine (it counts the grid search's loops)")
+        problem = depth_out_problem(getattr(args, "out", None), depth=True)
+        if problem:
+            raise ValueError(problem)
+    elif args.preset != "refine":
+        problem = depth_out_problem(getattr(args, "out", None), depth=False)
+        if problem:
+            raise ValueError(problem)
     if args.preset == "refine":
         for flag, value in (("--n-ps", args.n_ps), ("--n-do", args.n_do), ("--T", args.T), ("--n-m", args.n_m)):
             if value is not None:
@@ -562,9 +584,14 @@ def run_bench(args) -> int:
     if args.preset == "refine":
         return run_refine_bench(args)
     points = build_plan(args)
+    if getattr(args, "depth", False):
+        return run_depth(args, points)
     platforms = select_devices(args.devices)
-    from .geometry import resolve_search
-    from .params import PlannerConfig
+    # which device(s) the timings come from, always printed (also with --quiet): a GPU host without JAX's CUDA
+    # build silently runs on the CPU otherwise
+    print("psbmpc-jax bench: timing on " + "; ".join(
+        f"{plat}: {devs[0].device_kind} x{len(devs)}" for plat, devs in platforms.items()), file=sys.stderr,
+        flush=True)
 
     # no persistent compilation cache here and the in-memory one is cleared per point (prepare_jax):
     # compile_s is a real compile, not a cache load
@@ -586,9 +613,7 @@ def run_bench(args) -> int:
         print(f"[{done}/{total}] {p.label()} {what} {val}", file=sys.stderr, flush=True)
 
     def config_for(p, platform="cpu"):
-        return PlannerConfig(T=p.T, dt=args.dt, estimator=args.estimator, dtype=args.dtype,
-                             grounding_mode=args.grounding,
-                             grounding_search=resolve_search(args.grounding_search, platform))
+        return point_config(args, p, getattr(args, "layout_platform", None) or platform)
 
     # interleaved: one timing group per (sweep, device run); sequential: one group per point
     sweeps = [list(g) for _, g in itertools.groupby(points, key=lambda p: p.sweep)]
@@ -626,6 +651,103 @@ def run_bench(args) -> int:
     if not args.quiet:
         print(f"psbmpc-jax bench: {done} records appended to {out} in {time.perf_counter() - t_start:.0f} s",
               file=sys.stderr)
+    return 0
+
+
+# ------------------------------------------------------------------------------------------------ depth
+DEPTH_SCHEMA = "psbmpc-depth/1"
+DEPTH_FIELDS = ("schema", "sweep", "swept", "value", "n_cbs", "n_ps", "n_do", "n_so", "n_vertices", "T", "dt",
+                "estimator", "dtype", "grounding_mode", "layout_platform", "grounding_search", "pc_layout",
+                "rollout_unroll", "platform", "host", "depth", "loop_executions", "sites", "versions", "commit",
+                "timestamp")
+
+
+def point_config(args, p: Point, platform: str):
+    """The point's :class:`~psbmpc_jax.params.PlannerConfig`, its ``"auto"`` layouts chosen as on ``platform``
+    (``PlannerConfig.for_platform`` where the config has it, else the grounding search alone)."""
+    from .params import PlannerConfig
+
+    config = PlannerConfig(T=p.T, dt=args.dt, estimator=args.estimator, dtype=args.dtype,
+                           grounding_mode=args.grounding, grounding_search=args.grounding_search)
+    if hasattr(config, "for_platform"):
+        return config.for_platform(platform)
+    if config.grounding_search == "auto":
+        config = config.replace(grounding_search="dense" if platform == "gpu" else "culled")
+    return config
+
+
+def depth_out_problem(path, depth: bool) -> str | None:
+    """Why ``--out`` cannot take this run's records: ``psbmpc-jax report`` reads files of ``psbmpc-bench/1``
+    records only, so depth records (``depth``) and timing records go to separate files.  None if it can."""
+    if not path or not os.path.isfile(path):
+        return None
+    try:
+        with open(path, encoding="utf-8") as fh:
+            for lineno, line in enumerate(fh, 1):
+                if not line.strip():
+                    continue
+                try:
+                    schema = json.loads(line).get("schema")
+                except (ValueError, AttributeError):
+                    schema = None
+                if depth and schema != DEPTH_SCHEMA:
+                    return (f"--depth --out {path}: line {lineno} is not a {DEPTH_SCHEMA} record "
+                            f"({schema or 'no schema'}); depth records go to a file of their own, or "
+                            f"psbmpc-jax report could no longer read it: give another --out")
+                if not depth and schema == DEPTH_SCHEMA:
+                    return (f"--out {path}: line {lineno} is a {DEPTH_SCHEMA} record (psbmpc-jax bench --depth); "
+                            f"timing records go to another file: give another --out")
+    except (OSError, UnicodeDecodeError):
+        return None      # unreadable: the CLI's own check of --out reports it
+    return None
+
+
+def run_depth(args, points) -> int:
+    """``psbmpc-jax bench --depth``: per point the :func:`psbmpc_jax.depth.sequential_depth_only` of the solve step
+    (:func:`psbmpc_jax.solve.solve` on the inputs the timing would use), one ``psbmpc-depth/1`` record each."""
+    import functools
+
+    import jax
+
+    from .depth import sequential_depth_only
+    from .params import Params
+    from .planner import Planner
+    from .solve import solve
+
+    dev = jax.devices()[0] if args.devices == "all" else select_devices(args.devices)[args.devices][0]
+    layout_platform = args.layout_platform or ("cpu" if dev.platform == "cpu" else "gpu")
+    out = args.out or default_out()
+    os.makedirs(os.path.dirname(os.path.abspath(out)), exist_ok=True)
+    meta = {"host": _platform.node(), "versions": versions(), "commit": commit()}
+    with open(out, "a", encoding="utf-8") as fh:
+        for i, p in enumerate(points, 1):
+            behaviours, situation = behaviours_for(p.n_cbs), _situation(p)
+            config = point_config(args, p, layout_platform)
+            with jax.default_device(dev):
+                planner = Planner(config, params=Params(r_ct=p.r_ct), behaviours=behaviours)
+                inputs, state, params, samples = planner.prepare(situation, key=jax.random.key(args.seed))
+                t0 = time.perf_counter()
+                report = sequential_depth_only(functools.partial(solve, config=config), inputs, state, params,
+                                               samples)
+            rec = dict.fromkeys(DEPTH_FIELDS)
+            rec.update(schema=DEPTH_SCHEMA, sweep=p.sweep, swept=p.swept, value=p.value, n_cbs=len(behaviours),
+                       n_ps=int(max([ob.n_ps for ob in situation.obstacles], default=0)),
+                       n_do=len(situation.obstacles), n_so=len(situation.polygons),
+                       n_vertices=n_vertices(situation), T=float(p.T), dt=float(args.dt), estimator=config.estimator,
+                       dtype=config.dtype, grounding_mode=config.grounding_mode, layout_platform=layout_platform,
+                       grounding_search=config.grounding_search, pc_layout=getattr(config, "pc_layout", None),
+                       rollout_unroll=getattr(config, "rollout_unroll", None), platform=dev.platform,
+                       **meta, **report.to_dict(),
+                       timestamp=dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds"))
+            assert set(rec) == set(DEPTH_FIELDS), set(rec) ^ set(DEPTH_FIELDS)
+            fh.write(json.dumps(rec) + "\n")
+            fh.flush()
+            if not args.quiet:
+                print(f"[{i}/{len(points)}] {p.label()} ({layout_platform} layouts): depth {report.depth}, "
+                      f"{report.loop_executions} loop executions ({time.perf_counter() - t0:.1f} s)\n"
+                      f"{report.table()}\n", flush=True)
+    if not args.quiet:
+        print(f"psbmpc-jax bench: {len(points)} depth records appended to {out}", file=sys.stderr)
     return 0
 
 
@@ -789,4 +911,5 @@ def run_refine_bench(args) -> int:
 
 
 __all__ = ["run_bench", "add_bench_arguments", "build_plan", "behaviours_for", "FIELDS", "SCHEMA", "PRESETS",
+           "DEPTH_FIELDS", "DEPTH_SCHEMA", "run_depth", "point_config", "depth_out_problem",
            "REFINE_CASES", "REFINE_FIELDS", "REFINE_SCHEMA", "refine_benchmark", "run_refine_bench"]

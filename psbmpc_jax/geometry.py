@@ -32,7 +32,7 @@ def edge_table(vertices, nxt):
     return jnp.stack([ax, ay, abx, aby, inv_l2, bx, by, slope], axis=-1)
 
 
-def _edge_terms(px, py, edge):
+def edge_terms(px, py, edge):
     """Points ``px, py`` against one edge (its 8 columns, broadcastable): the vector from the nearest point of
     the edge to the point, its squared length, and whether the edge crosses the ray from the point to +x
     (half-open in y: the even-odd rule)."""
@@ -52,7 +52,7 @@ def _scan_edges(px, py, edges, n, track_best):
 
     def body(e, carry):
         d2, best, inside = carry
-        _, _, e2, cross = _edge_terms(px, py, tuple(edges[e, i] for i in range(8)))
+        _, _, e2, cross = edge_terms(px, py, tuple(edges[e, i] for i in range(8)))
         closer = e2 < d2
         best = jnp.where(closer, e, best) if track_best else best
         return jnp.where(closer, e2, d2), best, inside ^ cross
@@ -81,7 +81,7 @@ def polygon_distance(px, py, edges, n, with_direction=True, *, block=1):
         d2, best, inside = _dense_nearest(*(lax.stop_gradient(a) for a in (px, py, edges)), n, block)
     else:
         d2, best, inside = _scan_edges(px, py, edges, n, track_best=True)
-    qx, qy, e2, _ = _edge_terms(px, py, tuple(edges[best, i] for i in range(8)))
+    qx, qy, e2, _ = edge_terms(px, py, tuple(edges[best, i] for i in range(8)))
     near = ~inside & (n > 0)
     d = jnp.where(inside, 0.0, safe_sqrt(jnp.where(n > 0, e2, d2)))   # gradient-safe on the boundary
     return d, jnp.where(near, -qx, 0.0), jnp.where(near, -qy, 0.0)
@@ -278,8 +278,8 @@ def _cull(tiles: _Tiles, ch: _Chunks, tol, bound, M, KC) -> _Live:
         r = ch.rows[f]                                                           # [N, 8, M]
         e = tuple(r[:, i] for i in range(8))
         ax, ay, bx, by = e[0], e[1], e[5], e[6]
-        _, _, e2, _ = _edge_terms(cx, cy, e)
-        _, _, _, cross = _edge_terms(qx, qy, e)
+        _, _, e2, _ = edge_terms(cx, cy, e)
+        _, _, _, cross = edge_terms(qx, qy, e)
         dx = jnp.maximum(0.0, jnp.maximum(jnp.minimum(ax, bx) - qx, xmin[:, None] - jnp.maximum(ax, bx)))
         dy = jnp.maximum(0.0, jnp.maximum(jnp.minimum(ay, by) - qy, ymin[:, None] - jnp.maximum(ay, by)))
         put = lambda a, v: lax.dynamic_update_index_in_dim(a, v, q, axis=0)
@@ -319,7 +319,7 @@ def _nearest(tiles: _Tiles, ch: _Chunks, live: _Live, M, track):
         f = jnp.where(pos >= 0, jnp.take_along_axis(live.ids, q[None], 0)[0], C)
         r = ch.rows[f, :, k]                                                     # [N, 8]
         e = tuple(r[:, i, None] for i in range(8))
-        ex, ey, e2, cross = _edge_terms(x, y, e)
+        ex, ey, e2, cross = edge_terms(x, y, e)
         ax, ay, bx, by = e[0], e[1], e[5], e[6]
         portal = ((ax > qx) & (ay <= qy) & (y < ay)) ^ ((bx > qx) & (by <= qy) & (y < by))
         closer = e2 < d2
@@ -393,7 +393,7 @@ def _dense_nearest(px, py, edges, n, block):
     def body(i, carry):
         d2, best, inside = carry
         e = rows[i]
-        _, _, e2, cross = _edge_terms(px[None], py[None], tuple(e[:, c].reshape(lead) for c in range(8)))
+        _, _, e2, cross = edge_terms(px[None], py[None], tuple(e[:, c].reshape(lead) for c in range(8)))
         valid = (i * block + slot < n).reshape(lead)
         e2 = jnp.where(valid, e2, big)
         j = jnp.argmin(e2, axis=0).astype(jnp.int32)
@@ -412,7 +412,7 @@ def dense_distances(px, py, edges, n, *, block=32):
     points ``px, py [T, B]`` to one polygon (edge table ``edges [V, 8]``, ``n`` valid edges)."""
     px, py, edges = (lax.stop_gradient(a) for a in (px, py, edges))
     d2, best, inside = _dense_nearest(px, py, edges, n, block)
-    qx, qy, e2, _ = _edge_terms(px, py, tuple(edges[best, c] for c in range(8)))
+    qx, qy, e2, _ = edge_terms(px, py, tuple(edges[best, c] for c in range(8)))
     near = ~inside & (n > 0)
     d = jnp.where(inside, 0.0, safe_sqrt(jnp.where(n > 0, e2, d2)))
     return d, jnp.where(near, -qx, 0.0), jnp.where(near, -qy, 0.0)
@@ -451,34 +451,6 @@ def dense_argmax(px, py, tw, score, edges, n, with_direction=True, *, block=None
         return None, jnp.where(k > 0, best, 0)
 
     return lax.scan(one, None, (edges, n))[1]
-
-
-#: Values of ``PlannerConfig.grounding_search``.
-GROUNDING_SEARCHES = ("auto", "culled", "dense")
-
-
-def resolve_search(search: str, platform: str | None = None) -> str:
-    """``"auto"`` -> ``"culled"`` on the CPU, ``"dense"`` on any other platform (``platform`` None: JAX's
-    default backend, the one a plain ``jit`` runs on); ``"culled"`` / ``"dense"`` unchanged.
-
-    Measured (benchmarks/results/README.md): on 2 CPU cores the dense layout is 20-45x slower; on an H100 it
-    is 1.1-2x faster than the culled one at 9-2028 behaviours and 2.8x at 21961 vertices."""
-    if search not in GROUNDING_SEARCHES:
-        raise ValueError(f"grounding search must be one of {GROUNDING_SEARCHES}, got {search!r}")
-    if search != "auto":
-        return search
-    return "culled" if (platform or jax.default_backend()) == "cpu" else "dense"
-
-
-def search_argmax(search, px, py, tw, score, bound, edges, nxt, n, with_direction=True):
-    """:func:`polygon_argmax` (``search="culled"``) or :func:`dense_argmax` (``"dense"``; ``bound`` and
-    ``nxt`` unused): the two exact searches behind one call (``"auto"``: :func:`resolve_search`)."""
-    search = resolve_search(search)
-    if search == "dense":
-        return dense_argmax(px, py, tw, score, edges, n, with_direction)
-    if search == "culled":
-        return polygon_argmax(px, py, tw, score, bound, edges, nxt, n, with_direction)
-    raise ValueError(f"grounding search must be one of {GROUNDING_SEARCHES}, got {search!r}")
 
 
 def culled_distances(px, py, edges, nxt, n, *, tile=32, chunk=8, chunk_cap=16):

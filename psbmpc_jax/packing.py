@@ -35,6 +35,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .distance_grid import DistanceGrid, build_distance_grid
+from .edge_blocks import host_blocks, padded_blocks
 from .situation import Situation, ring_vertices
 
 
@@ -69,6 +70,10 @@ class ChartArrays(NamedTuple):
     next: jax.Array
     n: jax.Array
     mask: jax.Array
+    #: ``[K, 2]`` int32 (polygon, first edge slot) of the chart's blocks of 32 edges, back to back
+    #: (:func:`psbmpc_jax.edge_blocks.host_blocks`); the ``flat`` grounding search reads them.  None: the
+    #: content-independent layout (:func:`psbmpc_jax.edge_blocks.padded_blocks`), correct but more work.
+    blocks: jax.Array | None = None
 
 
 class GridArrays(NamedTuple):
@@ -240,7 +245,11 @@ def pack_world(polygons, config, capacities: Capacities | None = None,
     else:  # placeholder (exact mode, or no land at all)
         grid_arrays = GridArrays(np.zeros((2, 2), dtype), np.zeros(2, dtype), np.asarray(1.0, dtype),
                                  np.asarray(config.grid_margin, dtype), np.asarray(False))
-    return WorldArrays(ChartArrays(poly_v.astype(dtype), poly_next, poly_n, poly_mask), grid_arrays)
+    if caps.polygons is not None and caps.vertices is not None:   # fixed capacities: a content-free block count
+        blocks = padded_blocks(p_cap, v_cap)
+    else:
+        blocks = host_blocks([len(v) for v, _ in polys], p_cap, v_cap)
+    return WorldArrays(ChartArrays(poly_v.astype(dtype), poly_next, poly_n, poly_mask, blocks), grid_arrays)
 
 
 def pack_behaviours(behaviours, config, capacities: Capacities | None = None) -> BehaviourArrays:

@@ -65,15 +65,21 @@ class PlannerConfig:
         dtype: ``"float32"`` (fast) or ``"float64"`` (needs ``jax_enable_x64``).
         time_block: time steps per block of the streamed collision kernel.
         chunk_rows: (behaviour, obstacle, scenario) rows per collision-probability chunk.
-        pc_layout: ``"compact"`` (stream time blocks, evaluate only rows that pass the sigma shortcut)
-            or ``"dense"`` (evaluate every (l, i, s, k) point; simple, memory-hungry; for tests and GPUs).
+        pc_layout: ``"compact"`` (stream time blocks, evaluate only rows that pass the sigma shortcut),
+            ``"dense"`` (evaluate every (l, i, s, k) point in one pass; memory-hungry; the GPU's) or ``"auto"``
+            (compact on the CPU; on a GPU dense while it fits, :func:`psbmpc_jax.layouts.resolve_pc_layout`).
         grounding_mode: ``"exact"`` (every polygon edge, every point; per-polygon costs) or ``"grid"``
             (bilinear lookup in a nearest-land distance grid built once per chart; relative error of the
             grounding cost <= exp(G3·grid_spacing/√2) − 1 without wind; see :mod:`psbmpc_jax.distance_grid`).
         grounding_search: the exact mode's layout: ``"culled"`` (each polygon's worst time step by a search
             culling tiles and edge chunks by bounds, many short loop steps: the CPU's choice), ``"dense"``
-            (every edge against every point, 32 edges per loop step: fewer, wider steps, the GPU's choice) or
-            ``"auto"`` (culled on the CPU, dense elsewhere, by JAX's default backend).  Same costs.
+            (every edge against every point, 32 edges per loop step, one polygon at a time), ``"flat"`` (every
+            polygon's every edge in one masked pass, no loop: the GPU's choice) or ``"auto"`` (culled on the CPU,
+            flat elsewhere).  Same costs.
+        rollout_unroll: prediction steps per loop step of the own-ship and obstacle rollouts (an int >= 1, or
+            ``"auto"``: 1 on the CPU, :data:`psbmpc_jax.layouts.GPU_UNROLL` on a GPU).  Same trajectories.
+        layout_platform: the platform the ``"auto"`` layouts are chosen for: ``"auto"`` (JAX's default backend),
+            ``"cpu"`` or ``"gpu"`` (:mod:`psbmpc_jax.layouts`; :meth:`for_platform`).
         grid_spacing, grid_margin: grid resolution [m] and the margin around the polygons [m] (outside it the
             distance is taken as ``grid_margin``).
     """
@@ -88,11 +94,13 @@ class PlannerConfig:
     dtype: str = "float32"
     time_block: int = 8
     chunk_rows: int = 512
-    pc_layout: str = "compact"
+    pc_layout: str = "auto"
     grounding_mode: str = "exact"
     grounding_search: str = "auto"
     grid_spacing: float = 0.5
     grid_margin: float = 100.0
+    rollout_unroll: int | str = "auto"
+    layout_platform: str = "auto"
 
     def __post_init__(self) -> None:
         for name in _CONFIG_FLOATS:
@@ -113,8 +121,9 @@ class PlannerConfig:
             raise ValueError(f"PlannerConfig.T / PlannerConfig.dt = {round(n)} prediction steps; at most "
                              f"{MAX_HORIZON_STEPS} allowed (T={self.T} s, dt={self.dt} s)")
         for name, allowed in (("estimator", ESTIMATORS), ("dtype", DTYPES), ("grounding_mode", ("exact", "grid")),
-                              ("grounding_search", ("auto", "culled", "dense")),
-                              ("pc_layout", ("compact", "dense"))):
+                              ("grounding_search", ("auto", "culled", "dense", "flat")),
+                              ("pc_layout", ("auto", "compact", "dense")),
+                              ("layout_platform", ("auto", "cpu", "gpu"))):
             v = getattr(self, name)
             if not isinstance(v, str) or v not in allowed:
                 raise ValueError(f"PlannerConfig.{name} must be one of {allowed}, got {v!r}")
@@ -124,6 +133,24 @@ class PlannerConfig:
                 raise ValueError(f"PlannerConfig.{name} must be an integer in {lo}..{hi} (not bool), got "
                                  f"{type(v).__name__} {_show(v)}")
             object.__setattr__(self, name, int(v))
+
+        u = self.rollout_unroll
+        if u != "auto" and (isinstance(u, (bool, np.bool_)) or not isinstance(u, (int, np.integer))
+                            or not 1 <= u <= MAX_HORIZON_STEPS):
+            raise ValueError(f"PlannerConfig.rollout_unroll must be 'auto' or an integer in 1..{MAX_HORIZON_STEPS} "
+                             f"(not bool), got {type(u).__name__} {_show(u)}")
+        if u != "auto":
+            object.__setattr__(self, "rollout_unroll", int(u))
+
+    def for_platform(self, platform: str) -> "PlannerConfig":
+        """A copy whose ``"auto"`` layouts are chosen as on ``platform`` (``"cpu"`` or ``"gpu"``) whatever runs
+        it: ``grounding_search`` and ``rollout_unroll`` resolved, ``layout_platform`` set (``pc_layout`` "auto"
+        depends on the problem's size and is resolved when the program is traced)."""
+        from .layouts import platform_of, resolve_search, resolve_unroll
+
+        p = platform_of("gpu" if platform not in ("cpu", "auto") else platform)
+        return self.replace(grounding_search=resolve_search(self.grounding_search, p),
+                            rollout_unroll=resolve_unroll(self.rollout_unroll, p), layout_platform=p)
 
     @property
     def n_steps(self) -> int:

@@ -11,7 +11,6 @@ and a slot for warm starts; it is returned, never mutated.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import partial
 from typing import Any, NamedTuple
 
 import jax
@@ -20,6 +19,7 @@ import numpy as np
 
 from .costs.grounding import grounding_g
 from .evaluate import DEFAULT_TERMS, Evaluation, evaluate_arrays
+from .jitting import canonical_jit
 from .packing import SolveInputs
 from .params import Params, PlannerConfig
 
@@ -101,7 +101,7 @@ def signed_distance(px, py, chart):
     boundary; even-odd rule over the polygon's rings), +inf for padding polygons."""
     n_v = chart.vertices.shape[1]
 
-    def one(_, poly):
+    def one(poly):
         verts, nxt, n, real = poly
         ax, ay = verts[:, 0, None], verts[:, 1, None]                          # [V, 1]
         bx, by = verts[nxt, 0][:, None], verts[nxt, 1][:, None]
@@ -115,9 +115,10 @@ def signed_distance(px, py, chart):
         dy_ = jnp.where(by != ay, by - ay, 1.0)
         cross = edge & ((ay > py) != (by > py)) & (px < ax + (py - ay) * (bx - ax) / dy_)
         inside = (jnp.sum(cross, axis=0) % 2) == 1
-        return None, jnp.where(real, jnp.where(inside, -d, d), jnp.inf)
+        return jnp.where(real, jnp.where(inside, -d, d), jnp.inf)
 
-    return jax.lax.scan(one, None, (chart.vertices, chart.next, chart.n, chart.mask))[1]
+    # vmap, not a loop over the polygons: [P, V, B] is small for the one or two points per behaviour asked here
+    return jax.vmap(one)((chart.vertices, chart.next, chart.n, chart.mask))
 
 
 def selection_cost(ev: Evaluation, inputs: SolveInputs, params: Params | None = None,
@@ -166,7 +167,7 @@ def selection_cost(ev: Evaluation, inputs: SolveInputs, params: Params | None = 
         j = jnp.argmin(jnp.where(chart.mask if grid else sat_j & chart.mask, s_now, jnp.inf))
 
         def escape(_):
-            one = jax.tree.map(lambda a: a[j][None], chart)
+            one = type(chart)(chart.vertices[j][None], chart.next[j][None], chart.n[j][None], chart.mask[j][None])
             s_end = signed_distance(ev.own.x[-1], ev.own.y[-1], one)[0]             # [B] at the horizon end
             return grounding_g(s_end, t_end, 0.0, params).astype(dtype)
 
@@ -230,7 +231,7 @@ def solve_arrays(inputs: SolveInputs, state: PlannerState, params: Params, sampl
     return plan, nxt, ev._replace(best=plan.best, best_offsets=plan.offsets)
 
 
-@partial(jax.jit, static_argnames=("config",))
+@canonical_jit(static_argnames=("config",))
 def solve(inputs: SolveInputs, state: PlannerState, params: Params, samples, config: PlannerConfig,
           terms=DEFAULT_TERMS) -> tuple[Plan, PlannerState, Evaluation]:
     """One jitted solve step: grid search, selection, next state.  Returns ``(plan, next_state, evaluation)``;

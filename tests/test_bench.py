@@ -65,9 +65,10 @@ def check_record(rec):
         assert rec["compile_s"] > 0
 
 
-def test_smoke_preset_end_to_end(tmp_path):
+def test_smoke_preset_end_to_end(tmp_path, capsys):
     out = tmp_path / "b.jsonl"
     assert main(["bench", "--preset", "smoke", "--out", str(out), *FAST]) == 0
+    assert "psbmpc-jax bench: timing on cpu: " in capsys.readouterr().err     # the device, even with --quiet
     recs = read(out)
     for rec in recs:
         check_record(rec)
@@ -85,11 +86,12 @@ def test_smoke_preset_end_to_end(tmp_path):
 
 def test_dense_grounding_search_is_recorded_and_chooses_the_same_behaviour(tmp_path):
     out = tmp_path / "d.jsonl"
-    for search in ("culled", "dense"):
+    for search in ("culled", "dense", "flat"):
         assert main(["bench", *ONE_POINT, "--grounding-search", search, "--reference-budget", "0", "--out",
                      str(out), *FAST]) == 0
     recs = [r for r in read(out) if r["impl"] == "jax"]
-    assert [r["grounding_search"] for r in recs] == ["culled", "dense"] and recs[0]["best"] == recs[1]["best"]
+    assert [r["grounding_search"] for r in recs] == ["culled", "dense", "flat"]
+    assert recs[0]["best"] == recs[1]["best"] == recs[2]["best"]
 
 
 def test_budget_zero_marks_reference_skipped_and_append_keeps_lines(tmp_path):

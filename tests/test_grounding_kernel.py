@@ -18,8 +18,11 @@ import pytest
 from psbmpc_jax import reference as ref
 from psbmpc_jax.costs.grounding import grid_grounding_cost, grounding_costs
 from psbmpc_jax.distance_grid import build_distance_grid
+from psbmpc_jax.edge_blocks import flat_argmax, flat_distance, host_blocks, nearest_edges
 from psbmpc_jax.geometry import (culled_distances, dense_argmax, dense_distances, edge_table, polygon_argmax,
-                                 polygon_distance, resolve_search, search_argmax)
+                                 polygon_distance)
+from psbmpc_jax.grounding_search import distances_at, search_argmax
+from psbmpc_jax.layouts import resolve_search
 from psbmpc_jax.params import Params, PlannerConfig
 from psbmpc_jax.situation import ring_vertices
 
@@ -176,16 +179,17 @@ def test_dense_search_equals_full_kernel_and_culled_search(seed, block):
         search_argmax("fast", px, py, tw, score, bound, tables, nxt, n)
 
 
-def test_auto_search_is_culled_on_the_cpu_and_dense_elsewhere():
+def test_auto_search_is_culled_on_the_cpu_and_flat_elsewhere():
     assert resolve_search("auto", "cpu") == "culled"
-    assert resolve_search("auto", "gpu") == "dense" and resolve_search("auto", "tpu") == "dense"
+    assert resolve_search("auto", "gpu") == "flat"
     assert resolve_search("dense", "cpu") == "dense" and resolve_search("culled", "gpu") == "culled"
-    assert resolve_search("auto") == ("culled" if jax.default_backend() == "cpu" else "dense")
+    assert resolve_search("flat", "cpu") == "flat"
+    assert resolve_search("auto") == ("culled" if jax.default_backend() == "cpu" else "flat")
     with pytest.raises(ValueError, match="grounding search must be one of"):
         resolve_search("grid")
 
 
-@pytest.mark.parametrize("search", ["culled", "dense"])
+@pytest.mark.parametrize("search", ["culled", "dense", "flat"])
 @pytest.mark.parametrize("wind", [0.0, 4.0])
 def test_grounding_costs_equal_reference(wind, search):
     rng = np.random.default_rng(3)
@@ -219,7 +223,7 @@ def _outside_problem(seed):
     return polys, jnp.asarray(p[..., 0]), jnp.asarray(p[..., 1])
 
 
-@pytest.mark.parametrize("search", ["culled", "dense"])
+@pytest.mark.parametrize("search", ["culled", "dense", "flat"])
 @pytest.mark.parametrize("wind", [0.0, 3.0])
 def test_gradient_equals_central_differences(wind, search):
     polys, px, py = _outside_problem(5)
@@ -245,7 +249,7 @@ def _finite(tree):
     return all(bool(jnp.all(jnp.isfinite(x))) for x in jax.tree.leaves(tree))
 
 
-@pytest.mark.parametrize("search", ["culled", "dense"])
+@pytest.mark.parametrize("search", ["culled", "dense", "flat"])
 @pytest.mark.parametrize("wind", [0.0, 5.0])
 def test_degenerate_points_have_no_nan(wind, search):
     """On an edge, on a vertex, inside land, near but outside: value, jvp and vjp are finite."""
@@ -261,7 +265,7 @@ def test_degenerate_points_have_no_nan(wind, search):
     np.testing.assert_allclose(np.asarray(h)[0, :4], float(params.G1) * (1.0 + float(params.G3) * 5.0))
 
 
-@pytest.mark.parametrize("search", ["culled", "dense"])
+@pytest.mark.parametrize("search", ["culled", "dense", "flat"])
 def test_zero_polygons_give_an_empty_nan_free_result(search):
     px, py = jnp.ones((5, 3)), jnp.zeros((5, 3))
     verts, nxt, n, mask = jnp.zeros((0, 4, 2)), jnp.zeros((0, 4), jnp.int32), jnp.zeros(0, jnp.int32), jnp.zeros(0, bool)
@@ -293,3 +297,83 @@ def test_polygon_distance_gradient_at_an_edge_point_is_the_outward_normal():
     np.testing.assert_allclose(np.asarray(gx), [0.0, 3.0 / 5.0], atol=1e-12)
     np.testing.assert_allclose(np.asarray(gy), [-1.0, 4.0 / 5.0], atol=1e-12)
     assert math.isfinite(float(jax.grad(lambda x: polygon_distance(x, jnp.asarray(0.0), edges, n[0])[0])(jnp.asarray(5.0))))
+
+
+@pytest.mark.parametrize("seed,packed", [(0, True), (2, False), (4, True)])
+def test_flat_search_equals_full_kernel_and_culled_search(seed, packed):
+    """The flat layout (every polygon's every edge in one pass, psbmpc_jax/edge_blocks.py) finds the same
+    distance, inside flag and nearest edge as the full kernel, per polygon, and the same worst time step as the
+    culled search, with the host's packed blocks (polygons back to back, padding blocks at the end) and with the
+    content-free padded layout; a padding polygon (n = 0) gets index 0."""
+    rng = np.random.default_rng(seed)
+    polys = random_chart(rng)
+    verts, nxt, n = pack_chart(polys)
+    n = n.at[-1].set(0)
+    T, B = 30, 6
+    px, py = trajectories(rng, T, B, polys)
+    tables = edge_table(verts, nxt)
+    blocks = jnp.asarray(host_blocks(np.asarray(n), len(polys), verts.shape[1])) if packed else None
+    if packed:
+        assert blocks.shape[0] >= sum(-(-int(k) // 32) for k in n) and np.all(np.diff(np.asarray(blocks[:, 0])) >= 0)
+    full = full_distances(px, py, verts, nxt, n)
+    qx, qy = jnp.broadcast_to(px[None], (len(polys), T, B)), jnp.broadcast_to(py[None], (len(polys), T, B))
+    d, ex, ey = (np.asarray(a) for a in flat_distance(qx, qy, tables, n, blocks))
+    for j, (fd, fex, fey) in enumerate(full[:-1]):
+        np.testing.assert_allclose(d[j], fd, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(ex[j], fex, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(ey[j], fey, rtol=0, atol=1e-9)
+    # shared points ([1, T, B]) give the same per-polygon minima as one point set per polygon
+    d2s, ins, _ = nearest_edges(px[None], py[None], tables, n, blocks)
+    d2p, inp, _ = nearest_edges(qx, qy, tables, n, blocks)
+    np.testing.assert_array_equal(np.asarray(d2s), np.asarray(d2p))
+    np.testing.assert_array_equal(np.asarray(ins), np.asarray(inp))
+    tw = jnp.exp(-0.01 * DT * jnp.arange(T))
+    score = lambda d, ex, ey, w: w * (1.0 + 0.3 * ex / (1.0 + d)) / (1.0 + d * d)       # uses the direction
+    bound = lambda d, w: jnp.full_like(d, jnp.inf)
+    for wd in (True, False):
+        want = np.asarray(polygon_argmax(px, py, tw, score, bound, tables, nxt, n, wd))
+        got = np.asarray(flat_argmax(px, py, tw, score, tables, n, blocks, wd))
+        np.testing.assert_array_equal(got, want)
+        np.testing.assert_array_equal(np.asarray(search_argmax("flat", px, py, tw, score, bound, tables, nxt, n,
+                                                               wd, blocks)), want)
+    assert np.all(got[-1] == 0)
+
+
+def test_flat_argmax_in_column_chunks_equals_one_pass(monkeypatch):
+    """Above FLAT_STEP_ELEMENTS the columns are split into chunks (a lax.map): the same answer."""
+    import psbmpc_jax.edge_blocks as eb
+
+    rng = np.random.default_rng(9)
+    polys = random_chart(rng)
+    verts, nxt, n = pack_chart(polys)
+    px, py = trajectories(rng, 20, 7, polys)
+    tables = edge_table(verts, nxt)
+    tw = jnp.exp(-0.01 * DT * jnp.arange(20))
+    score = lambda d, ex, ey, w: w / (1.0 + d * d)
+    one = np.asarray(flat_argmax(px, py, tw, score, tables, n))
+    monkeypatch.setattr(eb, "FLAT_STEP_ELEMENTS", 700)
+    np.testing.assert_array_equal(np.asarray(flat_argmax(px, py, tw, score, tables, n)), one)
+
+
+@pytest.mark.parametrize("search", ["culled", "dense", "flat"])
+def test_distances_at_equal_polygon_distance(search):
+    rng = np.random.default_rng(12)
+    polys = random_chart(rng)
+    verts, nxt, n = pack_chart(polys)
+    qx, qy = (a[:len(polys)] for a in trajectories(rng, 20, 5, polys))             # one point set per polygon
+    tables = edge_table(verts, nxt)
+    d, ex, ey = (np.asarray(a) for a in distances_at(search, qx, qy, tables, n))
+    for j in range(len(polys)):
+        fd, fex, fey = (np.asarray(a) for a in polygon_distance(qx[j], qy[j], tables[j], n[j]))
+        np.testing.assert_allclose(d[j], fd, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(ex[j], fex, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(ey[j], fey, rtol=0, atol=1e-9)
+
+
+def test_host_blocks_layout_and_capacity():
+    b = host_blocks([3, 70, 32], p_cap=4, v_cap=80)
+    assert b.shape == (8, 2)
+    np.testing.assert_array_equal(b[:5], [[0, 0], [1, 0], [1, 32], [1, 64], [2, 0]])
+    np.testing.assert_array_equal(b[5:], [[3, 80]] * 3)                            # padding: sorted, no valid slot
+    with pytest.raises(ValueError, match="edge block capacity 2 is too small"):
+        host_blocks([70], p_cap=1, v_cap=70, capacity=2)

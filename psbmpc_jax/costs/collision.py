@@ -16,6 +16,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..layouts import resolve_pc_layout
 from ..numerics import normal_cdf, safe_sqrt
 from .base import Context, TermValue, cost_term
 
@@ -101,42 +102,28 @@ def _inv_logdet2(sxx, sxy, syy):
     return syy / det, -sxy / det, sxx / det, jnp.log(det)
 
 
-def pc_ce(dx, dy, sxx, sxy, syy, R, z, rho, alpha, chi2):
-    """Cross-Entropy importance sampling with the shared table ``z [I+1, N_s, 2]`` (own-ship at origin)."""
-    n_iter, n_s = z.shape[0] - 1, z.shape[1]
-    dtype = dx.dtype
+def pc_ce(dx, dy, sxx, sxy, syy, R, z, rho, alpha, chi2, early_exit: bool = False):
+    """Cross-Entropy importance sampling with the shared table ``z [I+1, N_s, 2]`` (own-ship at origin).
+
+    ``early_exit`` (static): run the refit iterations in a ``while_loop`` that stops as soon as every point is
+    done (converged, or too few elites), instead of always running all ``I``.  The same numbers (a done point's
+    proposal never changes again); not reverse-differentiable (the grid search's layout)."""
+    n_iter = z.shape[0] - 1
     R = jnp.broadcast_to(R, dx.shape)
-    r2 = (R * R)[..., None]
     ixx, ixy, iyy, logdet = _inv_logdet2(sxx, sxy, syy)
-    mx, my = 0.5 * dx, 0.5 * dy
     cxx = R * R / 3.0
-    cxy = jnp.zeros_like(dx)
-    cyy = cxx
-    done = jnp.zeros(dx.shape, bool)
-    for it in range(n_iter):
-        l00, l10, l11 = _cholesky2(cxx, cxy, cyy)
-        px = mx[..., None] + l00[..., None] * z[it, :, 0]
-        py = my[..., None] + l10[..., None] * z[it, :, 0] + l11[..., None] * z[it, :, 1]
-        qx, qy = px - dx[..., None], py - dy[..., None]
-        maha = ixx[..., None] * qx * qx + 2 * ixy[..., None] * qx * qy + iyy[..., None] * qy * qy
-        elite = ((px * px + py * py) <= r2) & (maha <= chi2)
-        ef = elite.astype(dtype)
-        n_e = jnp.sum(ef, axis=-1)
-        converged = n_e >= rho * n_s
-        refit = (~done) & (~converged) & (n_e >= 3)
-        n_safe = jnp.maximum(n_e, 1.0)
-        ex_ = jnp.sum(ef * px, axis=-1) / n_safe
-        ey_ = jnp.sum(ef * py, axis=-1) / n_safe
-        ax, ay = px - ex_[..., None], py - ey_[..., None]
-        sxx_e = jnp.sum(ef * ax * ax, axis=-1) / n_safe
-        sxy_e = jnp.sum(ef * ax * ay, axis=-1) / n_safe
-        syy_e = jnp.sum(ef * ay * ay, axis=-1) / n_safe
-        mx = jnp.where(refit, alpha * ex_ + (1 - alpha) * mx, mx)
-        my = jnp.where(refit, alpha * ey_ + (1 - alpha) * my, my)
-        cxx = jnp.where(refit, alpha * sxx_e + (1 - alpha) * cxx, cxx)
-        cxy = jnp.where(refit, alpha * sxy_e + (1 - alpha) * cxy, cxy)
-        cyy = jnp.where(refit, alpha * syy_e + (1 - alpha) * cyy, cyy)
-        done = done | ~refit
+    prop = (0.5 * dx, 0.5 * dy, cxx, jnp.zeros_like(dx), cxx, jnp.zeros(dx.shape, bool))
+
+    def refit(it, prop):
+        return _ce_refit(z[it], dx, dy, R, (ixx, ixy, iyy), prop, rho, alpha, chi2)
+
+    if early_exit and n_iter > 0:
+        prop = jax.lax.while_loop(lambda c: (c[0] < n_iter) & ~jnp.all(c[1][5]),
+                                  lambda c: (c[0] + 1, refit(c[0], c[1])), (jnp.int32(0), prop))[1]
+    else:
+        for it in range(n_iter):
+            prop = refit(it, prop)
+    mx, my, cxx, cxy, cyy, _ = prop
     l00, l10, l11 = _cholesky2(cxx, cxy, cyy)
     px = mx[..., None] + l00[..., None] * z[n_iter, :, 0]
     py = my[..., None] + l10[..., None] * z[n_iter, :, 0] + l11[..., None] * z[n_iter, :, 1]
@@ -146,13 +133,44 @@ def pc_ce(dx, dy, sxx, sxy, syy, R, z, rho, alpha, chi2):
     rx, ry = px - mx[..., None], py - my[..., None]
     maha_c = jxx[..., None] * rx * rx + 2 * jxy[..., None] * rx * ry + jyy[..., None] * ry * ry
     logw = -0.5 * (maha_o - maha_c) - 0.5 * (logdet - logdet_c)[..., None]
-    inside = (px * px + py * py) <= r2
+    inside = (px * px + py * py) <= (R * R)[..., None]
     w = jnp.where(inside, jnp.exp(jnp.where(inside, logw, 0.0)), 0.0)
     return jnp.minimum(1.0, jnp.mean(w, axis=-1))
 
 
-def collision_probability(dx, dy, sxx, sxy, syy, R, params, config, samples=None):
-    """Dispatch on ``config.estimator`` (no shortcut applied here)."""
+def _ce_refit(zi, dx, dy, R, inv, prop, rho, alpha, chi2):
+    """One Cross-Entropy iteration with the samples ``zi [N_s, 2]``: the proposal ``(mx, my, cxx, cxy, cyy,
+    done)`` refitted to its elite samples where the point is not done, converged or short of elites."""
+    mx, my, cxx, cxy, cyy, done = prop
+    ixx, ixy, iyy = inv
+    n_s = zi.shape[0]
+    l00, l10, l11 = _cholesky2(cxx, cxy, cyy)
+    px = mx[..., None] + l00[..., None] * zi[:, 0]
+    py = my[..., None] + l10[..., None] * zi[:, 0] + l11[..., None] * zi[:, 1]
+    qx, qy = px - dx[..., None], py - dy[..., None]
+    maha = ixx[..., None] * qx * qx + 2 * ixy[..., None] * qx * qy + iyy[..., None] * qy * qy
+    elite = ((px * px + py * py) <= (R * R)[..., None]) & (maha <= chi2)
+    ef = elite.astype(dx.dtype)
+    n_e = jnp.sum(ef, axis=-1)
+    converged = n_e >= rho * n_s
+    refit = (~done) & (~converged) & (n_e >= 3)
+    n_safe = jnp.maximum(n_e, 1.0)
+    ex_ = jnp.sum(ef * px, axis=-1) / n_safe
+    ey_ = jnp.sum(ef * py, axis=-1) / n_safe
+    ax, ay = px - ex_[..., None], py - ey_[..., None]
+    sxx_e = jnp.sum(ef * ax * ax, axis=-1) / n_safe
+    sxy_e = jnp.sum(ef * ax * ay, axis=-1) / n_safe
+    syy_e = jnp.sum(ef * ay * ay, axis=-1) / n_safe
+    mx = jnp.where(refit, alpha * ex_ + (1 - alpha) * mx, mx)
+    my = jnp.where(refit, alpha * ey_ + (1 - alpha) * my, my)
+    cxx = jnp.where(refit, alpha * sxx_e + (1 - alpha) * cxx, cxx)
+    cxy = jnp.where(refit, alpha * sxy_e + (1 - alpha) * cxy, cxy)
+    cyy = jnp.where(refit, alpha * syy_e + (1 - alpha) * cyy, cyy)
+    return mx, my, cxx, cxy, cyy, done | ~refit
+
+
+def collision_probability(dx, dy, sxx, sxy, syy, R, params, config, samples=None, early_exit: bool = False):
+    """Dispatch on ``config.estimator`` (no shortcut applied here; ``early_exit``: :func:`pc_ce`'s)."""
     if config.estimator == "quadrature":
         return pc_quadrature(dx, dy, sxx, sxy, syy, R, config.n_quad, config.quad_span)
     if samples is None:
@@ -160,7 +178,7 @@ def collision_probability(dx, dy, sxx, sxy, syy, R, params, config, samples=None
     if config.estimator == "mc":
         return pc_mc(dx, dy, sxx, sxy, syy, R, samples)
     if config.estimator == "ce":
-        return pc_ce(dx, dy, sxx, sxy, syy, R, samples, params.ce_rho, params.ce_alpha, params.ce_chi2)
+        return pc_ce(dx, dy, sxx, sxy, syy, R, samples, params.ce_rho, params.ce_alpha, params.ce_chi2, early_exit)
     raise ValueError(f"estimator must be one of ('quadrature', 'mc', 'ce'), got {config.estimator!r}")
 
 
@@ -197,7 +215,8 @@ def collision_kernel(ctx: Context, params, config, samples):
     Everything is time-major ([T, O·S, B]): reductions over time run over the leading axis, so the inner,
     vectorised axis is always the long behaviour axis (measured 2x faster than [B, O·S, T] on XLA:CPU).
 
-    Layouts: ``ctx.dense`` or ``config.pc_layout == "dense"`` evaluates every point (differentiable; the
+    Layouts (``config.pc_layout``, "auto": :func:`psbmpc_jax.layouts.resolve_pc_layout`): ``ctx.dense`` or
+    ``"dense"`` evaluates every point (differentiable; the
     shortcut is a ``where``).  Otherwise ("compact", the grid search's fast path) a cheap dense pass finds
     the points that pass the shortcut, the (row, time-block) pairs holding one are compacted and only those
     are sent through the (expensive) estimator: full chunks of ``chunk_rows`` items while at least that many
@@ -230,11 +249,14 @@ def collision_kernel(ctx: Context, params, config, samples):
     live = t_valid[:, None, None] & valid_os[None, :, None]
     active = (dx * dx + dy * dy <= (thr_os ** 2)[:, :, None]) & live
 
-    def point_terms(dx, dy, dvx, dvy, s_xx, s_xy, s_yy, rad, zk, dsc, act):
-        p = collision_probability(dx, dy, s_xx, s_xy, s_yy, rad, params, config, samples)
+    def point_terms(dx, dy, dvx, dvy, s_xx, s_xy, s_yy, rad, zk, dsc, act, early_exit=False):
+        p = collision_probability(dx, dy, s_xx, s_xy, s_yy, rad, params, config, samples, early_exit)
         return jnp.where(act, zk * (dvx * dvx + dvy * dvy) * p * dsc, 0.0)
 
-    if ctx.dense or config.pc_layout == "dense":
+    width = {"quadrature": config.n_quad, "mc": config.n_samples}.get(
+        config.estimator, config.n_samples * (config.ce_max_iter + 1))
+    layout = resolve_pc_layout(config.pc_layout, n_t * n_os * n_b, width, getattr(config, "layout_platform", None))
+    if ctx.dense or layout == "dense":
         o_of = jnp.arange(n_os) // n_s
         terms = point_terms(dx, dy, wx[:, :, None] - vx[:, None], wy[:, :, None] - vy[:, None],
                             sxx[:, o_of, None], sxy[:, o_of, None], syy[:, o_of, None], r_os[None, :, None],
@@ -278,7 +300,7 @@ def collision_kernel(ctx: Context, params, config, samples):
             win = jax.lax.optimization_barrier(
                 (dx_, dy_, g(wx3, os_) - g(vx3, l), g(wy3, os_) - g(vy3, l), g(sxx3, o), g(sxy3, o), g(syy3, o),
                  act))
-            terms = point_terms(*win[:7], r_os[os_][:, None], zk_os[os_][:, None], disc2[blk], win[7])
+            terms = point_terms(*win[:7], r_os[os_][:, None], zk_os[os_][:, None], disc2[blk], win[7], True)
             acc = acc.at[row].max(jnp.where(ok, jnp.max(terms, axis=-1), 0.0))
             acc_f = acc_f.at[row].max(jnp.where(ok, jnp.max(jnp.where(future2[blk], terms, 0.0), axis=-1), 0.0))
             return q0 + chunk, acc, acc_f

@@ -13,11 +13,12 @@ a max is the gradient at its argmax, so the cost is reverse- and forward-differe
 
 from __future__ import annotations
 
-import jax
 import jax.numpy as jnp
 
 from ..distance_grid import interpolate
-from ..geometry import dense_block, edge_table, polygon_distance, resolve_search, search_argmax
+from ..geometry import edge_table
+from ..grounding_search import distances_at, search_argmax
+from ..layouts import resolve_search
 from ..numerics import safe_sqrt
 
 
@@ -54,30 +55,26 @@ def _search_score(params):
     return score, bound
 
 
-def grounding_costs(px, py, t, vertices, nxt, n_vertices, poly_mask, params, search="auto"):
+def grounding_costs(px, py, t, vertices, nxt, n_vertices, poly_mask, params, search="auto", blocks=None,
+                    platform=None):
     """H_so^{l,j} for every polygon: own positions ``px, py [T, B]`` (time-major), times ``t [T]`` -> ``[P, B]``.
 
     Padding polygons (``poly_mask`` False) cost 0.  ``search`` (static; ``PlannerConfig.grounding_search``):
     ``"culled"`` (the culled argmax search, then each polygon's nearest edge one edge per loop step: the CPU
-    layout) or ``"dense"`` (every edge, and 32 edges per loop step in both: the GPU layout); ``"auto"``: by
-    platform (:func:`psbmpc_jax.geometry.resolve_search`).  The same costs either way."""
-    search = resolve_search(search)
+    layout), ``"dense"`` (every edge, 32 edges per loop step in both) or ``"flat"`` (every polygon's every edge in
+    one pass, with the chart's edge ``blocks``: the GPU layout); ``"auto"``: by platform
+    (:func:`psbmpc_jax.layouts.resolve_search`, ``platform`` as ``PlannerConfig.layout_platform``).  The same costs
+    either way."""
+    search = resolve_search(search, platform)
     tables = edge_table(vertices, nxt)                                          # [P, V, 8]
     score, bound = _search_score(params)
     windy = (params.V_w * params.G2) != 0                  # the nearest-point direction matters
     k = search_argmax(search, px, py, jnp.exp(-params.G4 * t), score, bound, tables, nxt,
-                      jnp.where(poly_mask, n_vertices, 0), windy)                # [P, B]
+                      jnp.where(poly_mask, n_vertices, 0), windy, blocks)       # [P, B]
     cols = jnp.arange(px.shape[1])
-    block = dense_block(px.shape[1]) if search == "dense" else 1
-
-    def one(carry, poly):
-        edges, n, kj, valid = poly
-        d, ex, ey = polygon_distance(px[kj, cols], py[kj, cols], edges, n, block=block)
-        g = grounding_g(d, t[kj], _wind_phi(d, ex, ey, params), params)
-        return carry, jnp.where(valid, g, 0.0)
-
-    _, h = jax.lax.scan(one, None, (tables, n_vertices, k, poly_mask))
-    return h
+    d, ex, ey = distances_at(search, px[k, cols], py[k, cols], tables, n_vertices, blocks)
+    g = grounding_g(d, t[k], _wind_phi(d, ex, ey, params), params)
+    return jnp.where(poly_mask[:, None], g, 0.0)
 
 
 def grid_grounding_cost(px, py, t, grid, params):

@@ -26,7 +26,7 @@ class GroundingTerm:
         else:
             poly = ctx.world.polygons
             so_j = grounding_costs(own.x, own.y, t, poly.vertices, poly.next, poly.n, poly.mask, params,
-                                   config.grounding_search).T
+                                   config.grounding_search, poly.blocks, config.layout_platform).T
         # no polygons: a [B, 0] max would be NaN in forward mode; costs are >= 0, padding costs 0
         value = jnp.max(so_j, axis=1) if so_j.shape[1] else jnp.zeros(so_j.shape[:1], own.x.dtype)
         return TermValue(value, {"so_j": so_j})

@@ -24,11 +24,12 @@ from __future__ import annotations
 
 import math
 
-import jax
 import jax.numpy as jnp
 
 from ..distance_grid import interpolate
-from ..geometry import dense_block, edge_table, polygon_distance, resolve_search, search_argmax
+from ..geometry import edge_table
+from ..grounding_search import distances_at, search_argmax
+from ..layouts import resolve_search
 from ..numerics import safe_sqrt
 from .base import Context, TermValue, cost_term
 from .colregs_fuzzy import check_choice, check_param
@@ -238,16 +239,12 @@ def max_grounding_penalty(ctx: Context, config, d_static_safe, p_g, q_g):
     def bound(d, tw):
         return score(d, None, None, tw)
 
-    search = resolve_search(getattr(config, "grounding_search", "auto"))
-    k = search_argmax(search, own.x, own.y, w, score, bound, tables, poly.next, n_edges, False)   # [P, B]
-    block = dense_block(n_b) if search == "dense" else 1
+    search = resolve_search(getattr(config, "grounding_search", "auto"), getattr(config, "layout_platform", None))
+    blocks = getattr(poly, "blocks", None)
+    k = search_argmax(search, own.x, own.y, w, score, bound, tables, poly.next, n_edges, False, blocks)   # [P, B]
     cols = jnp.arange(n_b)
-
-    def one(edges, n, kj, valid):
-        d, _, _ = polygon_distance(own.x[kj, cols], own.y[kj, cols], edges, n, block=block)
-        return jnp.where(valid, w[kj] * _g_shape(d, d_static_safe, q_g), 0.0)
-
-    h = jax.vmap(one)(tables, n_edges, k, poly.mask)                                          # [P, B]
+    d, _, _ = distances_at(search, own.x[k, cols], own.y[k, cols], tables, n_edges, blocks)
+    h = jnp.where(poly.mask[:, None], w[k] * _g_shape(d, d_static_safe, q_g), 0.0)                # [P, B]
     return jnp.max(h, axis=0)
 
 

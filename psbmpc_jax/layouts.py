@@ -1,0 +1,90 @@
+"""Per-platform layout choices: where the CPU's and the GPU's best layouts differ, and how ``"auto"`` picks.
+
+The numbers never depend on the layout (every layout is tested against the float64 reference); only the speed
+does.  A CPU runs a few wide threads: sequential loops cost little there and skipping work (culling, compaction)
+pays.  A GPU runs thousands of threads in kernels launched one after another: every step of a loop is at least
+one launch and a synchronisation, so a loop of a few hundred short steps sets a floor of milliseconds whatever
+the work, and doing more arithmetic in fewer, wider kernels pays.  ``psbmpc-jax bench --depth`` counts those
+loop steps (:mod:`psbmpc_jax.depth`).
+
+=================  =================================  =============================================
+config field       CPU (``auto``)                     GPU and other accelerators (``auto``)
+=================  =================================  =============================================
+grounding_search   ``culled``: tiles and edge chunks  ``flat``: every polygon's every edge in one
+                   culled by bounds                   masked pass (:mod:`psbmpc_jax.edge_blocks`)
+pc_layout          ``compact``: only the points that  ``dense`` while every (time, obstacle scenario,
+                   pass the sigma shortcut, streamed  behaviour) point fits
+                   in a ``while_loop``                :data:`DENSE_PC_ELEMENTS`, else ``compact``
+rollout_unroll     1: a ``scan`` of N + 1 steps       :data:`GPU_UNROLL` steps per loop step
+=================  =================================  =============================================
+
+The platform is ``PlannerConfig.layout_platform``: ``"auto"`` is JAX's default backend (the one a plain ``jit``
+runs on); ``"cpu"`` / ``"gpu"`` choose as on that platform whatever runs the program (the benchmark sets it to the
+device it times; the depth report uses it to count a GPU program's loops on a CPU).
+"""
+
+from __future__ import annotations
+
+#: Values of ``PlannerConfig.grounding_search``.
+GROUNDING_SEARCHES = ("auto", "culled", "dense", "flat")
+#: Values of ``PlannerConfig.pc_layout``.
+PC_LAYOUTS = ("auto", "compact", "dense")
+#: Values of ``PlannerConfig.layout_platform``.
+LAYOUT_PLATFORMS = ("auto", "cpu", "gpu")
+#: Rollout steps per loop step on a GPU.  Small on purpose: XLA fuses an unrolled recurrence into ever larger
+#: fusions that recompute earlier steps (measured on XLA:CPU, 1014 rows x 300 steps: unroll 1, 2, 4, 8, 16 run
+#: 12, 14, 68, 253, 543 ms and compile 0.6, 0.7, 1.3, 4.2, 19 s), so the rollout keeps its loop; a kernel that
+#: holds each row's rollout in registers (Pallas) is the way to remove it.
+GPU_UNROLL = 2
+#: Largest number of (time, obstacle scenario, behaviour) points x estimator width (quadrature nodes or samples)
+#: that the GPU evaluates densely (2^30: a few GiB of temporaries at most); larger problems stay compact.
+DENSE_PC_ELEMENTS = 1 << 30
+
+
+def platform_of(layout_platform: str = "auto") -> str:
+    """``"cpu"`` or ``"gpu"`` (any accelerator) for a ``layout_platform`` value."""
+    if layout_platform not in LAYOUT_PLATFORMS:
+        raise ValueError(f"PlannerConfig.layout_platform must be one of {LAYOUT_PLATFORMS}, got {layout_platform!r}")
+    if layout_platform != "auto":
+        return layout_platform
+    import jax
+
+    return "cpu" if jax.default_backend() == "cpu" else "gpu"
+
+
+def resolve_search(search: str, platform: str | None = None) -> str:
+    """``"auto"`` -> ``"culled"`` on the CPU, ``"flat"`` on any other platform (``platform`` None or ``"auto"``:
+    JAX's default backend); ``"culled"`` / ``"dense"`` / ``"flat"`` unchanged.
+
+    Measured (benchmarks/results/README.md): on 2 CPU cores the dense layout is 20-45x slower than the culled
+    one; on an H100 it was 1.1-2x faster at 9-2028 behaviours and 2.8x at 21961 vertices.  ``flat`` has no loop
+    at all."""
+    if search not in GROUNDING_SEARCHES:
+        raise ValueError(f"grounding search must be one of {GROUNDING_SEARCHES}, got {search!r}")
+    if search != "auto":
+        return search
+    return "culled" if platform_of(platform or "auto") == "cpu" else "flat"
+
+
+def resolve_pc_layout(layout: str, points: int, width: int, platform: str | None = None) -> str:
+    """The collision kernel's layout for ``points`` (time, obstacle scenario, behaviour) points whose estimator
+    evaluates ``width`` nodes or samples each: ``"compact"`` on the CPU; on a GPU ``"dense"`` up to
+    :data:`DENSE_PC_ELEMENTS` elements, else ``"compact"``.  Explicit values are kept."""
+    if layout not in PC_LAYOUTS:
+        raise ValueError(f"PlannerConfig.pc_layout must be one of {PC_LAYOUTS}, got {layout!r}")
+    if layout != "auto":
+        return layout
+    if platform_of(platform or "auto") == "cpu":
+        return "compact"
+    return "dense" if points * width <= DENSE_PC_ELEMENTS else "compact"
+
+
+def resolve_unroll(unroll, platform: str | None = None) -> int:
+    """Rollout steps per loop step: 1 on the CPU, :data:`GPU_UNROLL` on a GPU; an explicit int is kept."""
+    if unroll != "auto":
+        return int(unroll)
+    return 1 if platform_of(platform or "auto") == "cpu" else GPU_UNROLL
+
+
+__all__ = ["GROUNDING_SEARCHES", "PC_LAYOUTS", "LAYOUT_PLATFORMS", "GPU_UNROLL", "DENSE_PC_ELEMENTS", "platform_of",
+           "resolve_search", "resolve_pc_layout", "resolve_unroll"]
