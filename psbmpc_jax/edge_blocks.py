@@ -68,8 +68,8 @@ def padded_blocks(n_polygons: int, v_cap: int) -> np.ndarray:
 def _layout(tables, n, blocks):
     """Block rows ``[K, 32, 8]``, polygon ``[K]``, first slot ``[K]`` and lane validity ``[K, 32]``."""
     P, V = tables.shape[:2]
-    if blocks is None:
-        blocks = jnp.asarray(padded_blocks(P, V))
+    n = jnp.asarray(n)
+    blocks = jnp.asarray(padded_blocks(P, V) if blocks is None else blocks, jnp.int32)
     poly, start = blocks[:, 0], blocks[:, 1]
     slot = start[:, None] + jnp.arange(BLOCK_EDGES, dtype=jnp.int32)[None, :]
     valid = slot < n[poly][:, None]
@@ -129,7 +129,7 @@ def flat_distance(qx, qy, tables, n, blocks=None):
     :func:`psbmpc_jax.geometry.polygon_distance` (0 inside; reverse- and forward-differentiable w.r.t. the points:
     the nearest edge is found without gradients, the distance recomputed to it)."""
     d2, inside, slot = nearest_edges(qx, qy, tables, n, blocks)
-    nn = n.reshape((-1,) + (1,) * (qx.ndim - 1))
+    nn = jnp.asarray(n).reshape((-1,) + (1,) * (qx.ndim - 1))
     qvx, qvy, e2, _ = edge_terms(qx, qy, _edge_at(tables, slot))
     near = ~inside & (nn > 0)
     d = jnp.where(inside, 0.0, safe_sqrt(jnp.where(nn > 0, e2, d2)))
@@ -142,6 +142,7 @@ def flat_argmax(px, py, tw, score, tables, n, blocks=None, with_direction=True):
     no edge), as :func:`psbmpc_jax.geometry.polygon_argmax`.  ``with_direction`` (may be traced): False if
     ``score`` ignores (ex, ey).  Not differentiable."""
     px, py, tw, tables = (lax.stop_gradient(a) for a in (px, py, tw, tables))
+    n = jnp.asarray(n)
     T, B = px.shape
     P = tables.shape[0]
     if P == 0:
