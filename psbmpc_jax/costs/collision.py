@@ -102,27 +102,20 @@ def _inv_logdet2(sxx, sxy, syy):
     return syy / det, -sxy / det, sxx / det, jnp.log(det)
 
 
-def pc_ce(dx, dy, sxx, sxy, syy, R, z, rho, alpha, chi2, early_exit: bool = False):
+def pc_ce(dx, dy, sxx, sxy, syy, R, z, rho, alpha, chi2):
     """Cross-Entropy importance sampling with the shared table ``z [I+1, N_s, 2]`` (own-ship at origin).
 
-    ``early_exit`` (static): run the refit iterations in a ``while_loop`` that stops as soon as every point is
-    done (converged, or too few elites), instead of always running all ``I``.  The same numbers (a done point's
-    proposal never changes again); not reverse-differentiable (the grid search's layout)."""
+    The ``I`` refit iterations are unrolled: a ``while_loop`` that stops once every point is done was measured
+    slower on the CPU (C++-test-like situation, 1 014 / 7 098 behaviours: 73 / 583 ms against 52 / 534 ms,
+    ``benchmarks/bench_cpu_targets.py``), since in a chunk of thousands of points some point always needs
+    every iteration and the loop keeps XLA from fusing across iterations."""
     n_iter = z.shape[0] - 1
     R = jnp.broadcast_to(R, dx.shape)
     ixx, ixy, iyy, logdet = _inv_logdet2(sxx, sxy, syy)
     cxx = R * R / 3.0
     prop = (0.5 * dx, 0.5 * dy, cxx, jnp.zeros_like(dx), cxx, jnp.zeros(dx.shape, bool))
-
-    def refit(it, prop):
-        return _ce_refit(z[it], dx, dy, R, (ixx, ixy, iyy), prop, rho, alpha, chi2)
-
-    if early_exit and n_iter > 0:
-        prop = jax.lax.while_loop(lambda c: (c[0] < n_iter) & ~jnp.all(c[1][5]),
-                                  lambda c: (c[0] + 1, refit(c[0], c[1])), (jnp.int32(0), prop))[1]
-    else:
-        for it in range(n_iter):
-            prop = refit(it, prop)
+    for it in range(n_iter):
+        prop = _ce_refit(z[it], dx, dy, R, (ixx, ixy, iyy), prop, rho, alpha, chi2)
     mx, my, cxx, cxy, cyy, _ = prop
     l00, l10, l11 = _cholesky2(cxx, cxy, cyy)
     px = mx[..., None] + l00[..., None] * z[n_iter, :, 0]
@@ -169,8 +162,8 @@ def _ce_refit(zi, dx, dy, R, inv, prop, rho, alpha, chi2):
     return mx, my, cxx, cxy, cyy, done | ~refit
 
 
-def collision_probability(dx, dy, sxx, sxy, syy, R, params, config, samples=None, early_exit: bool = False):
-    """Dispatch on ``config.estimator`` (no shortcut applied here; ``early_exit``: :func:`pc_ce`'s)."""
+def collision_probability(dx, dy, sxx, sxy, syy, R, params, config, samples=None):
+    """Dispatch on ``config.estimator`` (no shortcut applied here)."""
     if config.estimator == "quadrature":
         return pc_quadrature(dx, dy, sxx, sxy, syy, R, config.n_quad, config.quad_span)
     if samples is None:
@@ -178,7 +171,7 @@ def collision_probability(dx, dy, sxx, sxy, syy, R, params, config, samples=None
     if config.estimator == "mc":
         return pc_mc(dx, dy, sxx, sxy, syy, R, samples)
     if config.estimator == "ce":
-        return pc_ce(dx, dy, sxx, sxy, syy, R, samples, params.ce_rho, params.ce_alpha, params.ce_chi2, early_exit)
+        return pc_ce(dx, dy, sxx, sxy, syy, R, samples, params.ce_rho, params.ce_alpha, params.ce_chi2)
     raise ValueError(f"estimator must be one of ('quadrature', 'mc', 'ce'), got {config.estimator!r}")
 
 
@@ -249,8 +242,8 @@ def collision_kernel(ctx: Context, params, config, samples):
     live = t_valid[:, None, None] & valid_os[None, :, None]
     active = (dx * dx + dy * dy <= (thr_os ** 2)[:, :, None]) & live
 
-    def point_terms(dx, dy, dvx, dvy, s_xx, s_xy, s_yy, rad, zk, dsc, act, early_exit=False):
-        p = collision_probability(dx, dy, s_xx, s_xy, s_yy, rad, params, config, samples, early_exit)
+    def point_terms(dx, dy, dvx, dvy, s_xx, s_xy, s_yy, rad, zk, dsc, act):
+        p = collision_probability(dx, dy, s_xx, s_xy, s_yy, rad, params, config, samples)
         return jnp.where(act, zk * (dvx * dvx + dvy * dvy) * p * dsc, 0.0)
 
     width = {"quadrature": config.n_quad, "mc": config.n_samples}.get(
@@ -300,7 +293,7 @@ def collision_kernel(ctx: Context, params, config, samples):
             win = jax.lax.optimization_barrier(
                 (dx_, dy_, g(wx3, os_) - g(vx3, l), g(wy3, os_) - g(vy3, l), g(sxx3, o), g(sxy3, o), g(syy3, o),
                  act))
-            terms = point_terms(*win[:7], r_os[os_][:, None], zk_os[os_][:, None], disc2[blk], win[7], True)
+            terms = point_terms(*win[:7], r_os[os_][:, None], zk_os[os_][:, None], disc2[blk], win[7])
             acc = acc.at[row].max(jnp.where(ok, jnp.max(terms, axis=-1), 0.0))
             acc_f = acc_f.at[row].max(jnp.where(ok, jnp.max(jnp.where(future2[blk], terms, 0.0), axis=-1), 0.0))
             return q0 + chunk, acc, acc_f
