@@ -1,6 +1,7 @@
 """Before/after timing of the paper-figure points on this device, both versions in one interleaved run.
 
-The points are those of ``psbmpc-jax bench`` (``--presets``, default fig5, fig7 and fig9: the Nidelva head-on
+The points are those of ``psbmpc-jax bench`` (``--presets``, default fig5, fig7 and fig9; ``nidelva`` is the
+solve of the closed-loop main job, the Nidelva preset with grid grounding at 1 014 behaviours: the Nidelva head-on
 with the 13 Table-2 polygons, exact grounding, quadrature, float32, T = 150 s), each solved by this checkout's
 package (``new``) and by another copy of it (``old``: a directory holding the package renamed ``psbmpc_old``,
 e.g. ``git worktree add /tmp/old <commit> && mkdir /tmp/oldpkg && cp -r /tmp/old/psbmpc_jax
@@ -31,6 +32,17 @@ def slots_for(pkg_name: str, label: str, presets):
     solve = importlib.import_module(f"{pkg_name}.solve").solve
     out = []
     for preset in presets:
+        if preset == "nidelva":        # the closed-loop main job's solve: the Nidelva preset (grid grounding)
+            mpc = importlib.import_module(f"{pkg_name}.presets").PRESETS["nidelva"]
+            sit = importlib.import_module(f"{pkg_name}.examples").nidelva_head_on()
+            planner = pkg.Planner(mpc.config, params=mpc.params, behaviours=bench.behaviours_for(1014))
+            prepared = jax.device_put(planner.prepare(sit))
+            compiled = solve.lower(*prepared, config=mpc.config).compile()
+            ev = jax.block_until_ready(compiled(*prepared))[2]
+            out.append({"point": {"version": label, "label": "nidelva preset (grid) n_cbs=1014", "sweep": preset,
+                                  "swept": "n_cbs", "value": 1014, "best": int(ev.best)},
+                        "call": lambda c=compiled, a=prepared: c(*a)})
+            continue
         swept, values, fixed = bench.PRESETS[preset]
         for p in bench.make_points(swept, values, fixed, preset):
             sit = bench._situation(p)

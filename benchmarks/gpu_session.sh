@@ -11,7 +11,10 @@
 #                                                          # then fig10/fig6s/fig7s with the dense search
 #   OUT=/some/dir bash benchmarks/gpu_session.sh refine    # the PSB-MPC + refinement benchmark (bench_refine.py)
 #                                                          # at the slots $SLOTS, bounded by $REFINE_TIMEOUT s
-#   SMALL=1 OUT=/tmp/x bash benchmarks/gpu_session.sh bench   # dry run at toy sizes (any machine)
+#   OUT=/some/dir bash benchmarks/gpu_session.sh floor     # every figure of the latency-floor goals in < 8 min:
+#                                                          # depth, profile, fig5 exact/grid, n_ps 5, 1e5 behaviours,
+#                                                          # same-host CPU crossover, plan overhead, refinement
+#   SMALL=1 OUT=/tmp/x bash benchmarks/gpu_session.sh bench   # dry run at toy sizes (any machine; also floor)
 #
 # Wheels of packages missing on the device image (shapely, pyshp) are installed from .whl/ when that folder
 # exists (see /work/.library/device/README.md in the project's workplace; elsewhere pip-install the project).
@@ -51,6 +54,35 @@ if [ "$what" = bench ]; then
   done
   # 4. batched closed loop: loop vs vmap over Monte Carlo runs
   timeout -s INT -k 10 100 python3 benchmarks/bench_sim_batch.py --runs $RUNS --duration $DUR --out "$OUT" 2>&1 | tail -8
+  ls -la "$OUT"
+elif [ "$what" = floor ]; then
+  # the GPU goals of the latency-floor work, each step bounded; the bounds add up to 475 s (< 8 min)
+  if [ -n "${SMALL:-}" ]; then
+    DEV=cpu; R=2; T="--T 10"; F5="9,39"; BIG=117; N1=39; RSLOTS="paper000:1:map"; PROF="--n-cbs 39"
+  else
+    DEV=gpu; R=10; T=""; F5="9,1014,2028"; BIG=99996; N1=1014; RSLOTS="nidelva:1:map,nidelva:16:vmap"
+    PROF="--n-cbs 1014"
+  fi
+  b() { local lim=$1 name=$2; shift 2
+    timeout -s INT -k 10 "$lim" bash -c "$(declare -f pj); pj bench $* --reference-budget 0 --warmup 1 --quiet \
+      --out $OUT/$name.jsonl" 2>&1 | tail -2; }
+  # 1. sequential depth of fig5 (GPU layouts: no loop step expected with the Pallas rollouts) and a kernel
+  #    profile of one 1014-behaviour solve (also logs whether the Pallas rollout kernel passed its check)
+  b 30 depth_fig5 --preset fig5 --depth --layout-platform gpu $T
+  timeout -s INT -k 10 40 python3 benchmarks/profile_solve.py $PROF --out "$OUT" 2>&1 | tail -3
+  # 2. fig5 exact (n_ps 1) on the GPU and on this host's CPU cores (the crossover), grid grounding at 9 / 1014
+  b 50 bench_gpu_fig5 --sweep n_cbs --values $F5 --n-ps 1 --devices $DEV --repeats $R $T
+  b 45 bench_hostcpu_fig5 --sweep n_cbs --values $F5 --n-ps 1 --devices cpu --repeats $R $T
+  b 30 bench_gpu_fig5_grid --sweep n_cbs --values 9,$N1 --n-ps 1 --grounding grid --devices $DEV --repeats $R $T
+  # 3. n_ps 5, 2 obstacles at 1014 behaviours; then 1e5 behaviours (memory in the record)
+  b 40 bench_gpu_nps5 --sweep n_cbs --values $N1 --n-ps 5 --devices $DEV --repeats $R $T
+  b 60 bench_gpu_large --sweep n_cbs --values $BIG --n-ps 5 --devices $DEV --repeats 5 $T
+  # 4. Planner.plan host overhead (plan - search) and the refinement at Nidelva scale (compiles for minutes on a
+  #    small CPU host: the dry run's refine slot may stop at its bound)
+  timeout -s INT -k 10 40 python3 benchmarks/bench_solve.py --repeats $R --modes exact --no-grad --out "$OUT" \
+    2>&1 | tail -4
+  timeout -s INT -k 10 140 python3 benchmarks/bench_refine.py --repeats $R --warmup 1 --slots "$RSLOTS" \
+    --out "$OUT" 2>&1 | tail -6
   ls -la "$OUT"
 elif [ "$what" = paper ]; then
   # the paper sweep alone (with few repeats) and fig5 with grid grounding, then the tests

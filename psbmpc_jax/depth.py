@@ -59,9 +59,10 @@ _ROOTS = tuple(os.path.dirname(os.path.dirname(os.path.abspath(f))) for f in (__
 
 @dataclasses.dataclass(frozen=True)
 class LoopSite:
-    """One loop site: ``where`` (``"file:line (function)"``), ``kind`` (``"scan"`` or ``"while"``), its
-    ``executions``, the ``trips`` summed over them and the fewest / most per execution, and for scans the
-    ``length`` and ``unroll`` (None where the merged executions differ, and for while loops)."""
+    """One loop site: ``where`` (``"file:line (function)"``), ``kind`` (``"scan"``, ``"while"``, or ``"kernel"``: a
+    Pallas kernel, one launch whose own loops run inside it, 0 trips), its ``executions``, the ``trips`` summed
+    over them and the fewest / most per execution, and for scans the ``length`` and ``unroll`` (None where the
+    merged executions differ, and for while loops)."""
 
     where: str
     kind: str
@@ -158,6 +159,8 @@ class _Analyser:
             length, unroll = int(params["length"]), int(params["unroll"])
             own = (_where(eqn), "scan", length, unroll, scan_trips(length, unroll))
             return Counter({own: 1}) + Counter({k: v * length for k, v in body.items()})
+        if name == "pallas_call":       # one kernel launch: the loops inside run in registers, not as launches
+            return Counter({(_where(eqn), "kernel", None, None, 0): 1})
         if name == "cond":
             branches = [self.profile(b.jaxpr) for b in params["branches"]]
             return branches[0] if all(b is not None and b == branches[0] for b in branches) else None

@@ -25,7 +25,7 @@ from .costs.collision import CollisionTerm
 from .costs.colregs import ColregsTerm
 from .costs.grounding_term import GroundingTerm
 from .costs.path import PathTerm
-from .layouts import resolve_unroll
+from .layouts import resolve_rollout_kernel, resolve_unroll
 from .obstacles import obstacle_covariances, obstacle_scenarios, positional_stats
 from .ownship import Trajectory, make_path, ownship_rollouts
 from .jitting import canonical_jit
@@ -85,15 +85,18 @@ def context(inputs: SolveInputs, last_offsets, params: Params, config: PlannerCo
     t = jnp.arange(n_steps + 1, dtype=dtype) * dt
     offsets = inputs.behaviours.offsets
     own_path = make_path(own_in.wx, own_in.wy, own_in.n)
-    unroll = resolve_unroll(getattr(config, "rollout_unroll", 1), getattr(config, "layout_platform", "auto"))
-    own = ownship_rollouts(own_in.state, own_path, own_in.U_d, offsets, params, n_steps, dt, unroll=unroll)
+    plat = getattr(config, "layout_platform", "auto")
+    unroll = resolve_unroll(getattr(config, "rollout_unroll", 1), plat)
+    kernel = resolve_rollout_kernel(getattr(config, "rollout_kernel", "scan"), plat)
+    roll = dict(unroll=unroll, kernel=kernel)
+    own = ownship_rollouts(own_in.state, own_path, own_in.U_d, offsets, params, n_steps, dt, **roll)
     own_applied = None
     if applied:
         held = jnp.broadcast_to(jnp.asarray(last_offsets, dtype), (1, offsets.shape[1], 2))
-        own_applied = ownship_rollouts(own_in.state, own_path, own_in.U_d, held, params, n_steps, dt, unroll=unroll)
+        own_applied = ownship_rollouts(own_in.state, own_path, own_in.U_d, held, params, n_steps, dt, **roll)
     n_o, n_s = obs_in.probs.shape
     obs = obstacle_scenarios(obs_in.state, obs_in.wx, obs_in.wy, obs_in.n, obs_in.n_ps, n_s, params, n_steps, dt,
-                             unroll=unroll, leg_u=obs_in.leg_u)
+                             leg_u=obs_in.leg_u, **roll)
     cov = obstacle_covariances(obs_in.cov, params, n_steps, dt)
     scen_valid = obs_in.mask[:, None] & (jnp.arange(n_s)[None, :] < obs_in.n_ps[:, None])
     return Context(

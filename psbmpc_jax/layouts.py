@@ -16,6 +16,8 @@ pc_layout          ``compact``: only the points that  ``dense`` while every (tim
                    pass the sigma shortcut, streamed  behaviour) point fits
                    in a ``while_loop``                :data:`DENSE_PC_ELEMENTS`, else ``compact``
 rollout_unroll     1: a ``scan`` of N + 1 steps       :data:`GPU_UNROLL` steps per loop step
+rollout_kernel     ``scan``                           ``pallas``: one kernel, each row's rollout in
+                                                      registers, where its self-check passes
 =================  =================================  =============================================
 
 The platform is ``PlannerConfig.layout_platform``: ``"auto"`` is JAX's default backend (the one a plain ``jit``
@@ -29,6 +31,8 @@ from __future__ import annotations
 GROUNDING_SEARCHES = ("auto", "culled", "dense", "flat")
 #: Values of ``PlannerConfig.pc_layout``.
 PC_LAYOUTS = ("auto", "compact", "dense")
+#: Values of ``PlannerConfig.rollout_kernel``.
+ROLLOUT_KERNELS = ("auto", "scan", "pallas")
 #: Values of ``PlannerConfig.layout_platform``.
 LAYOUT_PLATFORMS = ("auto", "cpu", "gpu")
 #: Rollout steps per loop step on a GPU.  Small on purpose: XLA fuses an unrolled recurrence into ever larger
@@ -79,6 +83,26 @@ def resolve_pc_layout(layout: str, points: int, width: int, platform: str | None
     return "dense" if points * width <= DENSE_PC_ELEMENTS else "compact"
 
 
+def resolve_rollout_kernel(kernel: str, platform: str | None = None) -> str:
+    """The rollouts' implementation: ``"scan"`` on the CPU; on a GPU ``"pallas"`` (one kernel, each row's
+    rollout in registers: :mod:`psbmpc_jax.rollout_kernel`) where its compiled self-check passed on this process's
+    accelerator, else ``"scan"``.  Choosing the GPU's layouts on a CPU host (``layout_platform="gpu"``) gives
+    ``"pallas"`` in Pallas's interpreter.  Explicit values are kept."""
+    if kernel not in ROLLOUT_KERNELS:
+        raise ValueError(f"PlannerConfig.rollout_kernel must be one of {ROLLOUT_KERNELS}, got {kernel!r}")
+    if kernel != "auto":
+        return kernel
+    if platform_of(platform or "auto") == "cpu":
+        return "scan"
+    import jax
+
+    if jax.default_backend() == "cpu":
+        return "pallas"
+    from .rollout_kernel import pallas_available
+
+    return "pallas" if pallas_available() else "scan"
+
+
 def resolve_unroll(unroll, platform: str | None = None) -> int:
     """Rollout steps per loop step: 1 on the CPU, :data:`GPU_UNROLL` on a GPU; an explicit int is kept."""
     if unroll != "auto":
@@ -87,4 +111,4 @@ def resolve_unroll(unroll, platform: str | None = None) -> int:
 
 
 __all__ = ["GROUNDING_SEARCHES", "PC_LAYOUTS", "LAYOUT_PLATFORMS", "GPU_UNROLL", "DENSE_PC_ELEMENTS", "platform_of",
-           "resolve_search", "resolve_pc_layout", "resolve_unroll"]
+           "ROLLOUT_KERNELS", "resolve_search", "resolve_pc_layout", "resolve_unroll", "resolve_rollout_kernel"]

@@ -18,7 +18,7 @@ def scenario_offsets(n_ps, s_cap: int, r_ct):
 
 
 def obstacle_scenarios(obs_state, wx, wy, n_wps, n_ps, s_cap: int, params, n_steps: int, dt,
-                       unroll: int = 1, leg_u=None) -> Trajectory:
+                       unroll: int = 1, leg_u=None, kernel: str = "scan") -> Trajectory:
     """Predicted trajectories of every (obstacle, scenario), time-major components ``[N+1, O, S]``.
 
     Args:
@@ -39,7 +39,7 @@ def obstacle_scenarios(obs_state, wx, wy, n_wps, n_ps, s_cap: int, params, n_ste
     chi_off = jnp.zeros((n_steps, rows), obs_state.dtype)
     traj = los_rollout(rep(x0), path, chi_off, u_ref, offsets, params.ob_lookahead, params.ob_R_a,
                        params.ob_T_chi, params.ob_T_U, dt, unroll=unroll,
-                       seg_speed=None if leg_u is None else rep(leg_u))
+                       seg_speed=None if leg_u is None else rep(leg_u), kernel=kernel)
     return Trajectory(*(c.reshape(n_steps + 1, n_o, s_cap) for c in traj))
 
 

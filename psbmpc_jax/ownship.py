@@ -70,7 +70,7 @@ def _take(table, idx):
 
 
 def los_rollout(x0, path: Path, chi_offsets, U_cmd, lateral_offset, lookahead, R_a, T_chi, T_U, dt,
-                unroll: int = 1, z0=None, return_segment: bool = False, seg_speed=None):
+                unroll: int = 1, z0=None, return_segment: bool = False, seg_speed=None, kernel: str = "scan"):
     """Roll the kinematic model with LOS guidance forward N steps for R rows.
 
     Args:
@@ -84,9 +84,20 @@ def los_rollout(x0, path: Path, chi_offsets, U_cmd, lateral_offset, lookahead, R
             closed loop that steps one state at a time carries it to the next call as ``z0``).
         seg_speed: optional per-row leg speeds ``[R, W]`` [m/s]: where the active leg's entry is >= 0 it replaces
             the speed reference (a shared plan's leg speeds; after the last waypoint the last leg's).
+        kernel: ``"scan"`` (a ``lax.scan`` over the steps, ``unroll`` per loop step) or ``"pallas"``
+            (:func:`psbmpc_jax.rollout_kernel.los_rollout_kernel`: one kernel, each row's rollout in registers;
+            not with ``z0``).  The same states.
 
     Returns the :class:`Trajectory` (and the segments when ``return_segment``).
     """
+    if kernel == "pallas" and z0 is None:
+        from .rollout_kernel import los_rollout_kernel
+
+        outs = los_rollout_kernel(x0, path, chi_offsets, U_cmd, lateral_offset, lookahead, R_a, T_chi, T_U, dt,
+                                  seg_speed=seg_speed)
+        return (Trajectory(*outs[:6]), outs[6]) if return_segment else Trajectory(*outs[:6])
+    if kernel not in ("scan", "pallas"):
+        raise ValueError(f"rollout kernel must be 'scan' or 'pallas', got {kernel!r}")
     n_rows = x0.shape[0]
     last_seg = path.n - 2
 
@@ -134,7 +145,8 @@ def maneuver_index(n_steps: int, n_m: int, t_ts, dt):
     return jnp.sum(k[:, None] >= k_m[None, :], axis=1) - 1
 
 
-def ownship_rollouts(own_state, path: Path, U_d, offsets, params, n_steps: int, dt, unroll: int = 1):
+def ownship_rollouts(own_state, path: Path, U_d, offsets, params, n_steps: int, dt, unroll: int = 1,
+                     kernel: str = "scan"):
     """Own-ship trajectory under every behaviour (kernel 1, rollout part).
 
     Args:
@@ -149,4 +161,4 @@ def ownship_rollouts(own_state, path: Path, U_d, offsets, params, n_steps: int, 
     x0 = jnp.broadcast_to(own_state, (n_b, 4))
     zeros = jnp.zeros((n_b,), own_state.dtype)
     return los_rollout(x0, path, chi_off, u_ref, zeros, params.os_lookahead, params.os_R_a,
-                       params.os_T_chi, params.os_T_U, dt, unroll=unroll)
+                       params.os_T_chi, params.os_T_U, dt, unroll=unroll, kernel=kernel)

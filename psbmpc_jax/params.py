@@ -78,6 +78,9 @@ class PlannerConfig:
             flat elsewhere).  Same costs.
         rollout_unroll: prediction steps per loop step of the own-ship and obstacle rollouts (an int >= 1, or
             ``"auto"``: 1 on the CPU, :data:`psbmpc_jax.layouts.GPU_UNROLL` on a GPU).  Same trajectories.
+        rollout_kernel: ``"scan"`` (the rollouts as ``lax.scan``), ``"pallas"`` (one kernel, each row's rollout
+            in registers, :mod:`psbmpc_jax.rollout_kernel`; interpreted on a CPU) or ``"auto"`` (scan on the
+            CPU, pallas on a GPU where its self-check passes).  Same trajectories.
         layout_platform: the platform the ``"auto"`` layouts are chosen for: ``"auto"`` (JAX's default backend),
             ``"cpu"`` or ``"gpu"`` (:mod:`psbmpc_jax.layouts`; :meth:`for_platform`).
         grid_spacing, grid_margin: grid resolution [m] and the margin around the polygons [m] (outside it the
@@ -100,6 +103,7 @@ class PlannerConfig:
     grid_spacing: float = 0.5
     grid_margin: float = 100.0
     rollout_unroll: int | str = "auto"
+    rollout_kernel: str = "auto"
     layout_platform: str = "auto"
 
     def __post_init__(self) -> None:
@@ -123,7 +127,8 @@ class PlannerConfig:
         for name, allowed in (("estimator", ESTIMATORS), ("dtype", DTYPES), ("grounding_mode", ("exact", "grid")),
                               ("grounding_search", ("auto", "culled", "dense", "flat")),
                               ("pc_layout", ("auto", "compact", "dense")),
-                              ("layout_platform", ("auto", "cpu", "gpu"))):
+                              ("layout_platform", ("auto", "cpu", "gpu")),
+                              ("rollout_kernel", ("auto", "scan", "pallas"))):
             v = getattr(self, name)
             if not isinstance(v, str) or v not in allowed:
                 raise ValueError(f"PlannerConfig.{name} must be one of {allowed}, got {v!r}")
@@ -144,13 +149,14 @@ class PlannerConfig:
 
     def for_platform(self, platform: str) -> "PlannerConfig":
         """A copy whose ``"auto"`` layouts are chosen as on ``platform`` (``"cpu"`` or ``"gpu"``) whatever runs
-        it: ``grounding_search`` and ``rollout_unroll`` resolved, ``layout_platform`` set (``pc_layout`` "auto"
-        depends on the problem's size and is resolved when the program is traced)."""
-        from .layouts import platform_of, resolve_search, resolve_unroll
+        it: ``grounding_search``, ``rollout_unroll`` and ``rollout_kernel`` resolved, ``layout_platform`` set
+        (``pc_layout`` "auto" depends on the problem's size and is resolved when the program is traced)."""
+        from .layouts import platform_of, resolve_rollout_kernel, resolve_search, resolve_unroll
 
         p = platform_of("gpu" if platform not in ("cpu", "auto") else platform)
         return self.replace(grounding_search=resolve_search(self.grounding_search, p),
-                            rollout_unroll=resolve_unroll(self.rollout_unroll, p), layout_platform=p)
+                            rollout_unroll=resolve_unroll(self.rollout_unroll, p),
+                            rollout_kernel=resolve_rollout_kernel(self.rollout_kernel, p), layout_platform=p)
 
     @property
     def n_steps(self) -> int:

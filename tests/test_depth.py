@@ -232,7 +232,7 @@ def test_bench_depth_cli(tmp_path, capsys):
 
 
 # ------------------------------------------------------------------------------------ pinned structure
-def _paper_solve(platform: str):
+def _paper_solve(platform: str, **config_fields):
     """fig5's 1 014-behaviour point (Nidelva head-on, n_ps 1, 2 obstacles, 13 polygons, exact grounding,
     quadrature, T 150 s) with the default configuration's layouts chosen as on ``platform``."""
     from psbmpc_jax import Params, Planner
@@ -241,26 +241,32 @@ def _paper_solve(platform: str):
     from psbmpc_jax.solve import solve
 
     p = Point(sweep="pin", swept="n_cbs", value=1014, n_cbs=1014, n_ps=1)
-    config = PlannerConfig(T=p.T).for_platform(platform)
+    config = PlannerConfig(T=p.T, **config_fields).for_platform(platform)
     planner = Planner(config, params=Params(r_ct=p.r_ct), behaviours=behaviours_for(p.n_cbs))
     return functools.partial(solve, config=config), planner.prepare(_situation(p))
 
 
 def test_default_gpu_layout_depth_is_pinned():
-    """The default configuration's GPU program at paper scale has exactly two loops: the own-ship and the
-    obstacle rollouts, 301 steps at 2 per loop step (150 trips each).  Every other stage (collision points,
-    all 13 polygons' edges, selection) is loop-free.  A change that adds a loop to the GPU program fails here:
-    measure it (``psbmpc-jax bench --depth --layout-platform gpu``) and update the pin on purpose."""
+    """The default configuration's GPU program at paper scale has no loop step left: the own-ship and obstacle
+    rollouts are one Pallas kernel each (chosen as on a GPU; interpreted here), and every other stage (collision
+    points, all 13 polygons' edges, selection) is loop-free.  With the scan rollouts (where the kernel's
+    self-check fails on a GPU) the two rollouts are the only loops, 150 trips each.  A change that adds a loop to
+    the GPU program fails here: measure it (``psbmpc-jax bench --depth --layout-platform gpu``) and update the pin
+    on purpose."""
     fn, args = _paper_solve("gpu")
+    r = sequential_depth_only(fn, *args)
+    assert r.depth == 0 and r.loop_executions == 2
+    assert [(s.where.split(" ")[-1], s.kind, s.executions) for s in r.sites] == [("(los_rollout_kernel)", "kernel", 2)]
+    fn, args = _paper_solve("gpu", rollout_kernel="scan")
     r = sequential_depth_only(fn, *args)
     assert r.depth == 300 and r.loop_executions == 2
     assert [(s.where.split(" ")[-1], s.kind, s.trips) for s in r.sites] == [("(los_rollout)", "scan", 300)]
 
 
 def test_default_cpu_layout_depth_is_pinned():
-    """The CPU program of the same point: the culled grounding search's loops dominate (3 966 trips when this
-    was written: the nearest-edge scans 2 519, the culling loops 676, the rollouts 602).  Pinned from above
-    with 5 % slack so that a regression of the CPU layouts' structure shows."""
+    """The CPU program of the same point: the culled grounding search's loops dominate (4 003 trips when this
+    was written, benchmarks/results/depth_cpu_layouts_20261128.jsonl; the rollouts 602 of them).  Pinned from
+    above with 4 % slack so that a regression of the CPU layouts' structure shows."""
     fn, args = _paper_solve("cpu")
     r = sequential_depth_only(fn, *args)
     assert 3000 <= r.depth <= 4170, r.table()

@@ -25,6 +25,8 @@ def test_for_platform_resolves_the_auto_layouts():
     gpu = PlannerConfig().for_platform("gpu")
     assert (gpu.grounding_search, gpu.rollout_unroll, gpu.layout_platform) == ("flat", GPU_UNROLL, "gpu")
     assert gpu.pc_layout == "auto"                                 # resolved from the problem's size when traced
+    assert gpu.rollout_kernel == ("pallas" if jax.default_backend() == "cpu" else gpu.rollout_kernel)
+    assert PlannerConfig().for_platform("cpu").rollout_kernel == "scan"
     cpu = PlannerConfig().for_platform("cpu")
     assert (cpu.grounding_search, cpu.rollout_unroll, cpu.layout_platform) == ("culled", 1, "cpu")
     kept = PlannerConfig(grounding_search="dense", rollout_unroll=3).for_platform("gpu")
