@@ -18,7 +18,7 @@ from shapely.geometry import Point, Polygon
 
 from psbmpc_jax import Obstacle, OwnShip, Params, PlannerConfig, Planner, Situation, paper_behaviours
 from psbmpc_jax import reference as ref_mod
-from psbmpc_jax.costs.grounding import edge_table, polygon_distance
+from psbmpc_jax.geometry import edge_table, polygon_distance
 from psbmpc_jax.packing import pack
 from psbmpc_jax.situation import ring_vertices
 

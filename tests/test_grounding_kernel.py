@@ -147,18 +147,23 @@ def test_argmax_skips_tiles_bounded_by_zero_but_not_land():
     assert np.any(ref.polygon_distances(pts, big)[0].reshape(T, B)[:, : B // 2] == 0.0)
 
 
+def padded_problem(seed):
+    """A random chart whose last polygon is padding (n = 0), its packed arrays and edge tables, and 30 x 6
+    trajectories: ``(polys, verts, nxt, n, px, py, tables)``."""
+    rng = np.random.default_rng(seed)
+    polys = random_chart(rng)
+    verts, nxt, n = pack_chart(polys)
+    px, py = trajectories(rng, 30, 6, polys)
+    return polys, verts, nxt, n.at[-1].set(0), px, py, edge_table(verts, nxt)
+
+
 @pytest.mark.parametrize("seed,block", [(0, 32), (2, 5), (4, 1)])
 def test_dense_search_equals_full_kernel_and_culled_search(seed, block):
     """The dense search (every edge, ``block`` edges per loop step) finds the same nearest edges as the full
     kernel and the same worst time step as the culled search, on random charts with holes, tiny rings, a
     zero-length edge, points on vertices and edges, and a padding polygon (n = 0)."""
-    rng = np.random.default_rng(seed)
-    polys = random_chart(rng)
-    verts, nxt, n = pack_chart(polys)
-    n = n.at[-1].set(0)
-    T, B = 30, 6
-    px, py = trajectories(rng, T, B, polys)
-    tables = edge_table(verts, nxt)
+    polys, verts, nxt, n, px, py, tables = padded_problem(seed)
+    T, B = px.shape
     for j, (fd, fex, fey) in enumerate(full_distances(px, py, verts, nxt, n)):
         for fn in (dense_distances, polygon_distance):
             d, ex, ey = (np.asarray(a) for a in fn(px, py, tables[j], n[j], block=block))
@@ -305,13 +310,8 @@ def test_flat_search_equals_full_kernel_and_culled_search(seed, packed):
     distance, inside flag and nearest edge as the full kernel, per polygon, and the same worst time step as the
     culled search, with the host's packed blocks (polygons back to back, padding blocks at the end) and with the
     content-free padded layout; a padding polygon (n = 0) gets index 0."""
-    rng = np.random.default_rng(seed)
-    polys = random_chart(rng)
-    verts, nxt, n = pack_chart(polys)
-    n = n.at[-1].set(0)
-    T, B = 30, 6
-    px, py = trajectories(rng, T, B, polys)
-    tables = edge_table(verts, nxt)
+    polys, verts, nxt, n, px, py, tables = padded_problem(seed)
+    T, B = px.shape
     blocks = jnp.asarray(host_blocks(np.asarray(n), len(polys), verts.shape[1])) if packed else None
     if packed:
         assert blocks.shape[0] >= sum(-(-int(k) // 32) for k in n) and np.all(np.diff(np.asarray(blocks[:, 0])) >= 0)

@@ -47,7 +47,7 @@ def as_chart(chart, name: str = "chart") -> ChartArrays:
     if not isinstance(chart, ChartArrays):
         raise ValueError(f"{name} must be a psbmpc_jax.packing.ChartArrays (or WorldArrays), got "
                          f"{type(chart).__name__}")
-    v, nx, n, m = (np.shape(a) for a in chart)
+    v, nx, n, m = (np.shape(a) for a in (chart.vertices, chart.next, chart.n, chart.mask))
     if len(v) != 3 or v[2] != 2 or nx != v[:2] or n != v[:1] or m != v[:1]:
         raise ValueError(f"{name} must hold vertices [P, V, 2], next [P, V], n [P], mask [P], got shapes "
                          f"{v}, {nx}, {n}, {m}")
