@@ -658,22 +658,18 @@ def run_bench(args) -> int:
 DEPTH_SCHEMA = "psbmpc-depth/1"
 DEPTH_FIELDS = ("schema", "sweep", "swept", "value", "n_cbs", "n_ps", "n_do", "n_so", "n_vertices", "T", "dt",
                 "estimator", "dtype", "grounding_mode", "layout_platform", "grounding_search", "pc_layout",
-                "rollout_unroll", "platform", "host", "depth", "loop_executions", "sites", "versions", "commit",
+                "rollout_unroll", "rollout_kernel", "platform", "host", "depth", "loop_executions", "sites", "versions", "commit",
                 "timestamp")
 
 
 def point_config(args, p: Point, platform: str):
     """The point's :class:`~psbmpc_jax.params.PlannerConfig`, its ``"auto"`` layouts chosen as on ``platform``
-    (``PlannerConfig.for_platform`` where the config has it, else the grounding search alone)."""
+    (:meth:`~psbmpc_jax.params.PlannerConfig.for_platform`)."""
     from .params import PlannerConfig
 
     config = PlannerConfig(T=p.T, dt=args.dt, estimator=args.estimator, dtype=args.dtype,
                            grounding_mode=args.grounding, grounding_search=args.grounding_search)
-    if hasattr(config, "for_platform"):
-        return config.for_platform(platform)
-    if config.grounding_search == "auto":
-        config = config.replace(grounding_search="dense" if platform == "gpu" else "culled")
-    return config
+    return config.for_platform(platform)
 
 
 def depth_out_problem(path, depth: bool) -> str | None:
@@ -735,8 +731,9 @@ def run_depth(args, points) -> int:
                        n_do=len(situation.obstacles), n_so=len(situation.polygons),
                        n_vertices=n_vertices(situation), T=float(p.T), dt=float(args.dt), estimator=config.estimator,
                        dtype=config.dtype, grounding_mode=config.grounding_mode, layout_platform=layout_platform,
-                       grounding_search=config.grounding_search, pc_layout=getattr(config, "pc_layout", None),
-                       rollout_unroll=getattr(config, "rollout_unroll", None), platform=dev.platform,
+                       grounding_search=config.grounding_search, pc_layout=config.pc_layout,
+                       rollout_unroll=config.rollout_unroll, rollout_kernel=config.rollout_kernel,
+                       platform=dev.platform,
                        **meta, **report.to_dict(),
                        timestamp=dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds"))
             assert set(rec) == set(DEPTH_FIELDS), set(rec) ^ set(DEPTH_FIELDS)

@@ -147,7 +147,7 @@ def flat_argmax(px, py, tw, score, tables, n, blocks=None, with_direction=True):
     P = tables.shape[0]
     if P == 0:
         return jnp.zeros((0, B), jnp.int32)
-    K = tables.shape[0] * (-(-tables.shape[1] // BLOCK_EDGES)) if blocks is None else blocks.shape[0]
+    K = (padded_blocks(*tables.shape[:2]) if blocks is None else blocks).shape[0]
 
     def columns(cx, cy):
         d2, inside, slot = nearest_edges(cx[None], cy[None], tables, n, blocks)      # [P, T, b]

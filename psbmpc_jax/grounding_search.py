@@ -17,7 +17,7 @@ from jax import lax
 
 from .edge_blocks import flat_argmax, flat_distance
 from .geometry import dense_argmax, dense_block, polygon_argmax, polygon_distance
-from .layouts import GROUNDING_SEARCHES, resolve_search
+from .layouts import resolve_search
 
 
 def search_argmax(search, px, py, tw, score, bound, edges, nxt, n, with_direction=True, blocks=None):
@@ -48,4 +48,4 @@ def distances_at(search, qx, qy, edges, n, blocks=None):
     return lax.scan(one, None, (edges, n, qx, qy))[1]
 
 
-__all__ = ["GROUNDING_SEARCHES", "search_argmax", "distances_at", "resolve_search"]
+__all__ = ["search_argmax", "distances_at"]

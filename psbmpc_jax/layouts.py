@@ -45,11 +45,16 @@ GPU_UNROLL = 2
 DENSE_PC_ELEMENTS = 1 << 30
 
 
+def _explicit(value, allowed: tuple, what: str):
+    """``value`` unless it is ``"auto"`` (then None); a value not in ``allowed`` is refused naming ``what``."""
+    if value not in allowed:
+        raise ValueError(f"{what} must be one of {allowed}, got {value!r}")
+    return None if value == "auto" else value
+
+
 def platform_of(layout_platform: str = "auto") -> str:
     """``"cpu"`` or ``"gpu"`` (any accelerator) for a ``layout_platform`` value."""
-    if layout_platform not in LAYOUT_PLATFORMS:
-        raise ValueError(f"PlannerConfig.layout_platform must be one of {LAYOUT_PLATFORMS}, got {layout_platform!r}")
-    if layout_platform != "auto":
+    if _explicit(layout_platform, LAYOUT_PLATFORMS, "PlannerConfig.layout_platform") is not None:
         return layout_platform
     import jax
 
@@ -63,9 +68,7 @@ def resolve_search(search: str, platform: str | None = None) -> str:
     Measured (benchmarks/results/README.md): on 2 CPU cores the dense layout is 20-45x slower than the culled
     one; on an H100 it was 1.1-2x faster at 9-2028 behaviours and 2.8x at 21961 vertices.  ``flat`` has no loop
     at all."""
-    if search not in GROUNDING_SEARCHES:
-        raise ValueError(f"grounding search must be one of {GROUNDING_SEARCHES}, got {search!r}")
-    if search != "auto":
+    if _explicit(search, GROUNDING_SEARCHES, "grounding search") is not None:
         return search
     return "culled" if platform_of(platform or "auto") == "cpu" else "flat"
 
@@ -74,9 +77,7 @@ def resolve_pc_layout(layout: str, points: int, width: int, platform: str | None
     """The collision kernel's layout for ``points`` (time, obstacle scenario, behaviour) points whose estimator
     evaluates ``width`` nodes or samples each: ``"compact"`` on the CPU; on a GPU ``"dense"`` up to
     :data:`DENSE_PC_ELEMENTS` elements, else ``"compact"``.  Explicit values are kept."""
-    if layout not in PC_LAYOUTS:
-        raise ValueError(f"PlannerConfig.pc_layout must be one of {PC_LAYOUTS}, got {layout!r}")
-    if layout != "auto":
+    if _explicit(layout, PC_LAYOUTS, "PlannerConfig.pc_layout") is not None:
         return layout
     if platform_of(platform or "auto") == "cpu":
         return "compact"
@@ -88,9 +89,7 @@ def resolve_rollout_kernel(kernel: str, platform: str | None = None) -> str:
     rollout in registers: :mod:`psbmpc_jax.rollout_kernel`) where its compiled self-check passed on this process's
     accelerator, else ``"scan"``.  Choosing the GPU's layouts on a CPU host (``layout_platform="gpu"``) gives
     ``"pallas"`` in Pallas's interpreter.  Explicit values are kept."""
-    if kernel not in ROLLOUT_KERNELS:
-        raise ValueError(f"PlannerConfig.rollout_kernel must be one of {ROLLOUT_KERNELS}, got {kernel!r}")
-    if kernel != "auto":
+    if _explicit(kernel, ROLLOUT_KERNELS, "PlannerConfig.rollout_kernel") is not None:
         return kernel
     if platform_of(platform or "auto") == "cpu":
         return "scan"
@@ -98,7 +97,7 @@ def resolve_rollout_kernel(kernel: str, platform: str | None = None) -> str:
 
     if jax.default_backend() == "cpu":
         return "pallas"
-    from .rollout_kernel import pallas_available
+    from .ownship import pallas_available
 
     return "pallas" if pallas_available() else "scan"
 

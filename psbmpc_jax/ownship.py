@@ -9,12 +9,18 @@ leading axis).
 
 from __future__ import annotations
 
+import logging
+import math
 from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from .numerics import wrap_angle
+from .rollout_kernel import los_rollout_kernel
+
+log = logging.getLogger(__name__)
 
 
 class Path(NamedTuple):
@@ -90,9 +96,9 @@ def los_rollout(x0, path: Path, chi_offsets, U_cmd, lateral_offset, lookahead, R
 
     Returns the :class:`Trajectory` (and the segments when ``return_segment``).
     """
-    if kernel == "pallas" and z0 is None:
-        from .rollout_kernel import los_rollout_kernel
-
+    if kernel == "pallas":
+        if z0 is not None:
+            raise ValueError("los_rollout: kernel='pallas' starts every row on its first segment; z0 needs 'scan'")
         outs = los_rollout_kernel(x0, path, chi_offsets, U_cmd, lateral_offset, lookahead, R_a, T_chi, T_U, dt,
                                   seg_speed=seg_speed)
         return (Trajectory(*outs[:6]), outs[6]) if return_segment else Trajectory(*outs[:6])
@@ -136,6 +142,42 @@ def los_rollout(x0, path: Path, chi_offsets, U_cmd, lateral_offset, lookahead, R
     _, outs = jax.lax.scan(step, init, xs, unroll=unroll)      # one extra (discarded) update at the end
     traj = Trajectory(*outs[:6])
     return (traj, outs[6]) if return_segment else traj
+
+
+_AVAILABLE: dict[str, bool] = {}
+
+
+def pallas_available(platform: str | None = None) -> bool:
+    """Whether the compiled kernel runs on ``platform`` (default: JAX's default backend) and equals the scan on a
+    small problem; checked once per process and platform.  False on the CPU (there it only interprets)."""
+    platform = platform or jax.default_backend()
+    if platform == "cpu":
+        return False
+    if platform not in _AVAILABLE:
+        try:
+            _AVAILABLE[platform] = _self_check()
+        except Exception as exc:  # noqa: BLE001 - any lowering or runtime failure means: use the scan
+            log.warning("Pallas rollout kernel unavailable on %s (%s: %s); using the lax.scan rollout", platform,
+                        type(exc).__name__, str(exc).splitlines()[0] if str(exc) else "")
+            _AVAILABLE[platform] = False
+    return _AVAILABLE[platform]
+
+
+def _self_check() -> bool:
+    rng = np.random.default_rng(0)
+    n, rows = 40, 200
+    x0 = jnp.asarray(np.c_[rng.normal(0, 5, (rows, 2)), rng.uniform(-math.pi, math.pi, rows),
+                           rng.uniform(0.5, 3, rows)], jnp.float32)
+    path = make_path(jnp.asarray([[0.0, 60.0, 90.0]], jnp.float32), jnp.asarray([[0.0, 10.0, 70.0]], jnp.float32),
+                     jnp.asarray([3], jnp.int32))
+    chi = jnp.asarray(rng.uniform(-1, 1, (n, rows)), jnp.float32)
+    u = jnp.asarray(rng.uniform(0, 3, (n, rows)), jnp.float32)
+    lat = jnp.zeros(rows, jnp.float32)
+    args = (x0, path, chi, u, lat, 10.0, 5.0, 1.0, 2.0, 0.5)
+    want = jax.jit(lambda *a: los_rollout(*a))(*args)
+    got = jax.jit(lambda *a: los_rollout_kernel(*a, interpret=False))(*args)
+    return all(bool(jnp.allclose(g, w_, rtol=1e-4, atol=1e-3)) for g, w_ in zip(got[:6], want))
+
 
 
 def maneuver_index(n_steps: int, n_m: int, t_ts, dt):

@@ -24,6 +24,8 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
+from .layouts import GROUNDING_SEARCHES, LAYOUT_PLATFORMS, PC_LAYOUTS, ROLLOUT_KERNELS
+
 ESTIMATORS = ("quadrature", "mc", "ce")
 DTYPES = ("float32", "float64")
 
@@ -125,10 +127,8 @@ class PlannerConfig:
             raise ValueError(f"PlannerConfig.T / PlannerConfig.dt = {round(n)} prediction steps; at most "
                              f"{MAX_HORIZON_STEPS} allowed (T={self.T} s, dt={self.dt} s)")
         for name, allowed in (("estimator", ESTIMATORS), ("dtype", DTYPES), ("grounding_mode", ("exact", "grid")),
-                              ("grounding_search", ("auto", "culled", "dense", "flat")),
-                              ("pc_layout", ("auto", "compact", "dense")),
-                              ("layout_platform", ("auto", "cpu", "gpu")),
-                              ("rollout_kernel", ("auto", "scan", "pallas"))):
+                              ("grounding_search", GROUNDING_SEARCHES), ("pc_layout", PC_LAYOUTS),
+                              ("layout_platform", LAYOUT_PLATFORMS), ("rollout_kernel", ROLLOUT_KERNELS)):
             v = getattr(self, name)
             if not isinstance(v, str) or v not in allowed:
                 raise ValueError(f"PlannerConfig.{name} must be one of {allowed}, got {v!r}")

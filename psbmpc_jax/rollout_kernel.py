@@ -11,31 +11,23 @@ step's state to the output.
 The arithmetic is :func:`~psbmpc_jax.ownship.los_rollout`'s, step for step (same switch test, guidance, Euler
 update and wraps); the per-row path lookups are masked sums over the padded waypoint axis instead of gathers.
 On the CPU the kernel runs in Pallas's interpreter (for tests: ``tests/test_rollout_kernel.py`` compares it with
-the scan in float64).  :func:`pallas_available` compiles and checks it once per process on an accelerator;
+the scan in float64).  :func:`psbmpc_jax.ownship.pallas_available` compiles and checks it once per process on an
+accelerator;
 ``PlannerConfig.rollout_kernel="auto"`` uses it on a GPU only where that check passed.
 """
 
 from __future__ import annotations
 
 import functools
-import logging
-import math
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 
 from .numerics import wrap_angle
-
-log = logging.getLogger(__name__)
+from .packing import bucket
 
 #: Rows per program (a power of two, as Triton's blocks must be).
 ROWS = 128
-
-
-def _pow2(n: int, minimum: int = 1) -> int:
-    n = max(int(n), minimum)
-    return 1 << (n - 1).bit_length()
 
 
 def _pick(table, idx, width: int):
@@ -103,9 +95,9 @@ def los_rollout_kernel(x0, path, chi_offsets, U_cmd, lateral_offset, lookahead, 
     n_rows = x0.shape[0]
     n_out = chi_offsets.shape[0] + 1
     rp = -(-n_rows // ROWS) * ROWS
-    tp = _pow2(n_out)
+    tp = bucket(n_out)
     w = path.wx.shape[1]
-    wp = _pow2(w, 2)
+    wp = bucket(w, 2)
     shared = path.wx.shape[0] == 1 and n_rows != 1
     path_rows = 1 if shared else rp
 
@@ -144,41 +136,4 @@ def los_rollout_kernel(x0, path, chi_offsets, U_cmd, lateral_offset, lookahead, 
     return tuple(o[:n_out, :n_rows] for o in outs)
 
 
-_AVAILABLE: dict[str, bool] = {}
-
-
-def pallas_available(platform: str | None = None) -> bool:
-    """Whether the compiled kernel runs on ``platform`` (default: JAX's default backend) and equals the scan on a
-    small problem; checked once per process and platform.  False on the CPU (there it only interprets)."""
-    platform = platform or jax.default_backend()
-    if platform == "cpu":
-        return False
-    if platform not in _AVAILABLE:
-        try:
-            _AVAILABLE[platform] = _self_check()
-        except Exception as exc:  # noqa: BLE001 - any lowering or runtime failure means: use the scan
-            log.warning("Pallas rollout kernel unavailable on %s (%s: %s); using the lax.scan rollout", platform,
-                        type(exc).__name__, str(exc).splitlines()[0] if str(exc) else "")
-            _AVAILABLE[platform] = False
-    return _AVAILABLE[platform]
-
-
-def _self_check() -> bool:
-    from .ownship import los_rollout, make_path
-
-    rng = np.random.default_rng(0)
-    n, rows = 40, 200
-    x0 = jnp.asarray(np.c_[rng.normal(0, 5, (rows, 2)), rng.uniform(-math.pi, math.pi, rows),
-                           rng.uniform(0.5, 3, rows)], jnp.float32)
-    path = make_path(jnp.asarray([[0.0, 60.0, 90.0]], jnp.float32), jnp.asarray([[0.0, 10.0, 70.0]], jnp.float32),
-                     jnp.asarray([3], jnp.int32))
-    chi = jnp.asarray(rng.uniform(-1, 1, (n, rows)), jnp.float32)
-    u = jnp.asarray(rng.uniform(0, 3, (n, rows)), jnp.float32)
-    lat = jnp.zeros(rows, jnp.float32)
-    args = (x0, path, chi, u, lat, 10.0, 5.0, 1.0, 2.0, 0.5)
-    want = jax.jit(lambda *a: los_rollout(*a))(*args)
-    got = jax.jit(lambda *a: los_rollout_kernel(*a, interpret=False))(*args)
-    return all(bool(jnp.allclose(g, w_, rtol=1e-4, atol=1e-3)) for g, w_ in zip(got[:6], want))
-
-
-__all__ = ["ROWS", "los_rollout_kernel", "pallas_available"]
+__all__ = ["ROWS", "los_rollout_kernel"]

@@ -174,9 +174,7 @@ def test_small_solve():
     from psbmpc_jax.params import PlannerConfig
     from psbmpc_jax.solve import solve
 
-    config = PlannerConfig(T=20.0)
-    if hasattr(config, "for_platform"):
-        config = config.for_platform("cpu")
+    config = PlannerConfig(T=20.0).for_platform("cpu")
     planner = Planner(config, behaviours=behaviours_for(9))
     args = planner.prepare(nidelva_head_on(n_ps=1, n_so=4))
     fn = functools.partial(solve, config=config)

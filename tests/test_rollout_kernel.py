@@ -13,8 +13,8 @@ import pytest
 
 from psbmpc_jax import Planner, PlannerConfig
 from psbmpc_jax.depth import sequential_depth_only
-from psbmpc_jax.ownship import los_rollout, make_path
-from psbmpc_jax.rollout_kernel import ROWS, los_rollout_kernel, pallas_available
+from psbmpc_jax.ownship import los_rollout, make_path, pallas_available
+from psbmpc_jax.rollout_kernel import ROWS, los_rollout_kernel
 from psbmpc_jax.solve import solve
 
 from conftest import SMALL_BEHAVIOURS, random_situation
@@ -74,5 +74,10 @@ def test_depth_counts_the_kernel_as_one_launch():
 
 def test_no_compiled_kernel_on_the_cpu_and_bad_kernel_names():
     assert pallas_available("cpu") is False
+    x0 = jnp.zeros((3, 4))
+    path = make_path(jnp.asarray([[0.0, 10.0]]), jnp.asarray([[0.0, 0.0]]), jnp.asarray([2], jnp.int32))
+    with pytest.raises(ValueError, match="z0 needs 'scan'"):
+        los_rollout(x0, path, jnp.zeros((4, 3)), jnp.ones((4, 3)), jnp.zeros(3), 5.0, 2.0, 1.0, 1.0, 0.5,
+                    z0=jnp.zeros(3, jnp.int32), kernel="pallas")
     with pytest.raises(ValueError, match="PlannerConfig.rollout_kernel must be one of"):
         PlannerConfig(rollout_kernel="cuda")

@@ -240,7 +240,7 @@ def max_grounding_penalty(ctx: Context, config, d_static_safe, p_g, q_g):
         return score(d, None, None, tw)
 
     search = resolve_search(getattr(config, "grounding_search", "auto"), getattr(config, "layout_platform", None))
-    blocks = getattr(poly, "blocks", None)
+    blocks = poly.blocks
     k = search_argmax(search, own.x, own.y, w, score, bound, tables, poly.next, n_edges, False, blocks)   # [P, B]
     cols = jnp.arange(n_b)
     d, _, _ = distances_at(search, own.x[k, cols], own.y[k, cols], tables, n_edges, blocks)
