@@ -347,9 +347,9 @@ def _prepare(px, py, tw, edges, nxt, n, tile, chunk):
 
 #: Time steps per tile of :func:`polygon_argmax` (at most; the horizon is split into equal tiles).  Larger tiles
 #: cull fewer edges but cost fewer, cheaper culling passes; on the 2-core CPU the argmax alone at 1 014 behaviours
-#: took (tile 32 / 64 / 128): 55 / 41 / 30 ms on the 13 Nidelva polygons (T 150 s), 319 / 168 / 103 ms on the
-#: raw 21 961-vertex polygon (fig9, own-ship still), 69 / 36 / 25 ms on three 59-vertex islands beside a 9 m/s
-#: route (T 120 s).
+#: took (tile 32 / 64 / 128): 44 / 33 / 30 ms on the 13 Nidelva polygons (T 150 s), 298 / 151 / 95 ms on the
+#: raw 21 961-vertex polygon (fig9, own-ship still), 50 / 38 / 29 ms on three 59-vertex islands beside a 9 m/s
+#: route (T 120 s) (benchmarks/bench_layout_choices.py, results/layout_choices_cpu_20261128T054017Z.json).
 ARGMAX_TILE = 128
 
 

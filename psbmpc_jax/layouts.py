@@ -37,8 +37,9 @@ ROLLOUT_KERNELS = ("auto", "scan", "pallas")
 LAYOUT_PLATFORMS = ("auto", "cpu", "gpu")
 #: Rollout steps per loop step on a GPU.  Small on purpose: XLA fuses an unrolled recurrence into ever larger
 #: fusions that recompute earlier steps (measured on XLA:CPU, 1014 rows x 300 steps: unroll 1, 2, 4, 8, 16 run
-#: 12, 14, 68, 253, 543 ms and compile 0.6, 0.7, 1.3, 4.2, 19 s), so the rollout keeps its loop; a kernel that
-#: holds each row's rollout in registers (Pallas) is the way to remove it.
+#: 5.1, 13, 48, 200, 293 ms and compile 0.25, 0.31, 0.66, 1.8, 12 s; benchmarks/bench_layout_choices.py,
+#: benchmarks/results/layout_choices_cpu_20261128T054017Z.json), so the rollout keeps its loop; a kernel that
+#: holds each row's rollout in registers (Pallas, rollout_kernel) is the way to remove it.
 GPU_UNROLL = 2
 #: Largest number of (time, obstacle scenario, behaviour) points x estimator width (quadrature nodes or samples)
 #: that the GPU evaluates densely (2^30: a few GiB of temporaries at most); larger problems stay compact.
