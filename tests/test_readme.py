@@ -1,4 +1,5 @@
-"""The README's library example runs as written and gives what the README says it gives."""
+"""The README stays short and its library example runs as written; the examples moved from it to the documentation
+pages run too; `.ci/run` runs the README's test command and then builds the documentation."""
 
 from __future__ import annotations
 
@@ -7,18 +8,30 @@ import re
 
 import numpy as np
 
-README = pathlib.Path(__file__).resolve().parents[1] / "README.md"
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+README = ROOT / "README.md"
+QUICKSTART = ROOT / "docs" / "quickstart.md"
+CHARTS = ROOT / "docs" / "charts.md"
+
+#: the README is the front page; everything longer lives in docs/
+MAX_README_LINES = 250
 
 
-def _python_blocks():
-    return re.findall(r"```python\n(.*?)```", README.read_text(), flags=re.S)
+def _python_blocks(path: pathlib.Path) -> list[str]:
+    return re.findall(r"```python\n(.*?)```", path.read_text(), flags=re.S)
 
 
-def test_readme_library_example_runs():
-    blocks = _python_blocks()
-    assert blocks, "README has no python example"
-    namespace: dict = {}
-    exec(compile(blocks[0], str(README), "exec"), namespace)  # noqa: S102 - our own documentation
+def _run(block: str, path: pathlib.Path, namespace: dict) -> dict:
+    exec(compile(block, str(path), "exec"), namespace)  # noqa: S102 - our own documentation
+    return namespace
+
+
+def test_readme_is_short():
+    n = len(README.read_text().splitlines())
+    assert n <= MAX_README_LINES, f"README.md has {n} lines, at most {MAX_README_LINES} allowed: move detail to docs/"
+
+
+def _check_library_example(namespace: dict) -> None:
     result, state = namespace["result"], namespace["state"]
     assert result.costs["total"].shape == (1014,)
     assert result.own_trajectories.shape == (1014, 301, 4)
@@ -31,33 +44,51 @@ def test_readme_library_example_runs():
     assert np.all(np.diff([r["total"] for r in ranking]) >= 0)
 
 
+def test_readme_library_example_runs():
+    blocks = _python_blocks(README)
+    assert len(blocks) == 1, "README has exactly one python example (the library API)"
+    assert len(blocks[0].strip().splitlines()) <= 25, "the README's example stays about 20 lines"
+    _check_library_example(_run(blocks[0], README, {}))
+
+
+def test_quickstart_starts_with_the_readme_example():
+    assert _python_blocks(QUICKSTART)[0] == _python_blocks(README)[0]
+
+
 def test_readme_commands_match_ci():
     text = README.read_text()
-    ci = (README.parent / ".ci" / "run").read_text()
+    ci = (ROOT / ".ci" / "run").read_text()
     test_cmd = 'python3 -m pip install -q -e ".[test]" && python3 -m pytest -q'
     assert test_cmd in text
-    # .ci/run runs the same two steps
+    # .ci/run runs the same two steps, then the strict documentation build (after the tests)
     assert 'python3 -m pip install -q -e ".[test]"' in ci and "python3 -m pytest -q" in ci
     assert "python3 -m pip install -e . && psbmpc-jax run nidelva" in text
+    docs = 'python3 -m mkdocs build --strict'
+    assert docs in ci and ci.index(docs) > ci.index("python3 -m pytest -q")
 
 
-def test_readme_charts_example_runs():
-    blocks = [b for b in _python_blocks() if "psbmpc_jax.charts" in b]
-    assert blocks, "README has no charts example"
-    namespace: dict = {}
-    exec(compile(blocks[0], str(README), "exec"), namespace)  # noqa: S102
+def test_readme_links_resolve():
+    """Every relative link of the README points at a file of the repository (the docs site checks its own)."""
+    for target in re.findall(r"\]\(([^)#]+)(?:#[^)]*)?\)", README.read_text()):
+        if "://" not in target:
+            assert (ROOT / target).is_file(), f"README links to missing {target}"
+
+
+def test_charts_example_runs():
+    blocks = [b for b in _python_blocks(CHARTS) if "psbmpc_jax.charts" in b]
+    assert blocks, "docs/charts.md has no charts example"
+    namespace = _run(blocks[0], CHARTS, {})
     polygons = namespace["polygons"]
     assert 1 <= len(polygons) < len(namespace["chart"].polygons)
     # every ring set is (outer, holes...) with rings of shape [n >= 3, 2]
     assert all(r.ndim == 2 and r.shape[0] >= 3 and r.shape[1] == 2 for rings in polygons for r in rings)
 
 
-def test_readme_objective_example_runs():
-    blocks = _python_blocks()
+def test_objective_example_runs():
+    blocks = _python_blocks(QUICKSTART)
     objective_block = [b for b in blocks if "objective(" in b]
-    assert objective_block, "README has no objective example"
-    namespace: dict = {}
-    exec(compile(blocks[0], str(README), "exec"), namespace)  # noqa: S102
-    exec(compile(objective_block[0].replace("\n  ", "\n").strip(), str(README), "exec"), namespace)  # noqa: S102
+    assert objective_block, "docs/quickstart.md has no objective example"
+    namespace = _run(blocks[0], QUICKSTART, {})
+    _run(objective_block[0].replace("\n  ", "\n").strip(), QUICKSTART, namespace)
     g = np.asarray(namespace["g"])
     assert g.shape == (2, 2) and np.all(np.isfinite(g)) and np.abs(g).max() > 0
