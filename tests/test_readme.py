@@ -18,7 +18,7 @@ MAX_README_LINES = 250
 
 
 def _python_blocks(path: pathlib.Path) -> list[str]:
-    return re.findall(r"```python\n(.*?)```", path.read_text(), flags=re.S)
+    return re.findall(r"```python\n(.*?)```", path.read_text(), flags=re.DOTALL)
 
 
 def _run(block: str, path: pathlib.Path, namespace: dict) -> dict:
@@ -40,7 +40,7 @@ def _check_library_example(namespace: dict) -> None:
     assert result.chi_opt > 0
     assert state.last_offsets == (result.u_opt, result.chi_opt)
     ranking = result.ranking(3)
-    assert [r["index"] for r in ranking][0] == result.best_index
+    assert ranking[0]["index"] == result.best_index
     assert np.all(np.diff([r["total"] for r in ranking]) >= 0)
 
 
@@ -98,9 +98,9 @@ def test_objective_example_runs():
 #: specification choice ids); the documentation cites papers by authors and year and explains its own choice ids
 INTERNAL_LABELS = {
     "specification document name or section": re.compile(r"\bSPEC(?:_[A-Z]+)?\b|§"),
-    "seed-paper number": re.compile(r"\bseeds? ?-?0\d\d\b", re.I),
+    "seed-paper number": re.compile(r"\bseeds? ?-?0\d\d\b", re.IGNORECASE),
     "specification choice id": re.compile(r"\bC-(?:00\d|R)-"),
-    "issue number": re.compile(r"\bissues? #?\d+", re.I),
+    "issue number": re.compile(r"\bissues? #?\d+", re.IGNORECASE),
 }
 
 
