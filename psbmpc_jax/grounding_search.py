@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from jax import lax
 
+from .bounded_search import bounded_argmax, use_bounded
 from .edge_blocks import flat_argmax, flat_distance
 from .geometry import dense_argmax, dense_block, polygon_argmax, polygon_distance
 from .layouts import resolve_search
@@ -27,7 +28,9 @@ def search_argmax(search, px, py, tw, score, bound, edges, nxt, n, with_directio
     search = resolve_search(search)
     if search == "dense":
         return dense_argmax(px, py, tw, score, edges, n, with_direction)
-    if search == "culled":
+    if search == "bounded" and use_bounded(edges):
+        return bounded_argmax(px, py, tw, score, bound, edges, nxt, n, with_direction)
+    if search in ("bounded", "culled"):
         return polygon_argmax(px, py, tw, score, bound, edges, nxt, n, with_direction)
     return flat_argmax(px, py, tw, score, edges, n, blocks, with_direction)
 
@@ -48,4 +51,4 @@ def distances_at(search, qx, qy, edges, n, blocks=None):
     return lax.scan(one, None, (edges, n, qx, qy))[1]
 
 
-__all__ = ["search_argmax", "distances_at"]
+__all__ = ["distances_at", "search_argmax"]

@@ -10,8 +10,12 @@ loop steps (:mod:`psbmpc_jax.depth`).
 =================  =================================  =============================================
 config field       CPU (``auto``)                     GPU and other accelerators (``auto``)
 =================  =================================  =============================================
-grounding_search   ``culled``: tiles and edge chunks  ``flat``: every polygon's every edge in one
-                   culled by bounds                   masked pass (:mod:`psbmpc_jax.edge_blocks`)
+grounding_search   ``bounded``: distance bounds and   ``flat``: every polygon's every edge in one
+                   a few exact distances for charts   masked pass (:mod:`psbmpc_jax.edge_blocks`)
+                   of a few small polygons
+                   (:mod:`psbmpc_jax.bounded_search`),
+                   else ``culled``: tiles and edge
+                   chunks culled by bounds
 pc_layout          ``compact``: only the points that  ``dense`` while every (time, obstacle scenario,
                    pass the sigma shortcut, streamed  behaviour) point fits
                    in a ``while_loop``                :data:`DENSE_PC_ELEMENTS`, else ``compact``
@@ -28,7 +32,7 @@ device it times; the depth report uses it to count a GPU program's loops on a CP
 from __future__ import annotations
 
 #: Values of ``PlannerConfig.grounding_search``.
-GROUNDING_SEARCHES = ("auto", "culled", "dense", "flat")
+GROUNDING_SEARCHES = ("auto", "bounded", "culled", "dense", "flat")
 #: Values of ``PlannerConfig.pc_layout``.
 PC_LAYOUTS = ("auto", "compact", "dense")
 #: Values of ``PlannerConfig.rollout_kernel``.
@@ -63,15 +67,17 @@ def platform_of(layout_platform: str = "auto") -> str:
 
 
 def resolve_search(search: str, platform: str | None = None) -> str:
-    """``"auto"`` -> ``"culled"`` on the CPU, ``"flat"`` on any other platform (``platform`` None or ``"auto"``:
-    JAX's default backend); ``"culled"`` / ``"dense"`` / ``"flat"`` unchanged.
+    """``"auto"`` -> ``"bounded"`` on the CPU (the bounded search where the chart is small enough,
+    :func:`psbmpc_jax.bounded_search.use_bounded`, the culled one otherwise), ``"flat"`` on any other platform
+    (``platform`` None or ``"auto"``: JAX's default backend); explicit values unchanged.
 
     Measured (benchmarks/results/README.md): on 2 CPU cores the dense layout is 20-45x slower than the culled
     one; on an H100 it was 1.1-2x faster at 9-2028 behaviours and 2.8x at 21961 vertices.  ``flat`` has no loop
-    at all."""
+    at all.  On three small islands (176 vertices) the bounded search cut the grounding cost's share of the CPU
+    solve 2-2.5x against the culled one (benchmarks/bench_cpu_targets.py)."""
     if _explicit(search, GROUNDING_SEARCHES, "grounding search") is not None:
         return search
-    return "culled" if platform_of(platform or "auto") == "cpu" else "flat"
+    return "bounded" if platform_of(platform or "auto") == "cpu" else "flat"
 
 
 def resolve_pc_layout(layout: str, points: int, width: int, platform: str | None = None) -> str:
@@ -110,5 +116,16 @@ def resolve_unroll(unroll, platform: str | None = None) -> int:
     return 1 if platform_of(platform or "auto") == "cpu" else GPU_UNROLL
 
 
-__all__ = ["GROUNDING_SEARCHES", "PC_LAYOUTS", "LAYOUT_PLATFORMS", "GPU_UNROLL", "DENSE_PC_ELEMENTS", "platform_of",
-           "ROLLOUT_KERNELS", "resolve_search", "resolve_pc_layout", "resolve_unroll", "resolve_rollout_kernel"]
+__all__ = [
+    "DENSE_PC_ELEMENTS",
+    "GPU_UNROLL",
+    "GROUNDING_SEARCHES",
+    "LAYOUT_PLATFORMS",
+    "PC_LAYOUTS",
+    "ROLLOUT_KERNELS",
+    "platform_of",
+    "resolve_pc_layout",
+    "resolve_rollout_kernel",
+    "resolve_search",
+    "resolve_unroll",
+]

@@ -73,10 +73,12 @@ class PlannerConfig:
         grounding_mode: ``"exact"`` (every polygon edge, every point; per-polygon costs) or ``"grid"``
             (bilinear lookup in a nearest-land distance grid built once per chart; relative error of the
             grounding cost <= exp(G3·grid_spacing/√2) − 1 without wind; see :mod:`psbmpc_jax.distance_grid`).
-        grounding_search: the exact mode's layout: ``"culled"`` (each polygon's worst time step by a search
-            culling tiles and edge chunks by bounds, many short loop steps: the CPU's choice), ``"dense"``
+        grounding_search: the exact mode's layout: ``"bounded"`` (each polygon's worst time step from distance
+            bounds and a few exact distances, proven or else searched as ``culled``; for charts of a few small
+            polygons, larger ones go to ``culled``: the CPU's choice, :mod:`psbmpc_jax.bounded_search`),
+            ``"culled"`` (a search culling tiles and edge chunks by bounds, many short loop steps), ``"dense"``
             (every edge against every point, 32 edges per loop step, one polygon at a time), ``"flat"`` (every
-            polygon's every edge in one masked pass, no loop: the GPU's choice) or ``"auto"`` (culled on the CPU,
+            polygon's every edge in one masked pass, no loop: the GPU's choice) or ``"auto"`` (bounded on the CPU,
             flat elsewhere).  Same costs.
         rollout_unroll: prediction steps per loop step of the own-ship and obstacle rollouts (an int >= 1, or
             ``"auto"``: 1 on the CPU, :data:`psbmpc_jax.layouts.GPU_UNROLL` on a GPU).  Same trajectories.

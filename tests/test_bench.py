@@ -77,7 +77,7 @@ def test_smoke_preset_end_to_end(tmp_path, capsys):
     assert [r["n_cbs"] for r in jax_recs] == [9, 39] and len(ref_recs) == 2
     assert all(r["sweep"] == "smoke" and r["swept"] == "n_cbs" and r["T"] == 10.0 for r in recs)
     assert all(len(r["times_ms"]) == 2 for r in jax_recs)
-    assert all(r["grounding_search"] == "culled" for r in jax_recs)      # auto on the CPU: the layout used
+    assert all(r["grounding_search"] == "bounded" for r in jax_recs)      # auto on the CPU: the layout used
     assert all(r["grounding_search"] is None for r in ref_recs)
     for j, r in zip(jax_recs, ref_recs):   # same situation, same answer (default budget is ample here)
         assert not r["skipped"] and len(r["times_ms"]) == 1

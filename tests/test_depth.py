@@ -197,7 +197,7 @@ def test_point_config_layout_platform():
     args = ap.parse_args(["--preset", "smoke", "--depth", "--layout-platform", "gpu"])
     p = build_plan(args)[0]
     cpu, gpu = point_config(args, p, "cpu"), point_config(args, p, "gpu")
-    assert cpu.grounding_search == "culled" and gpu.grounding_search not in ("auto", "culled")
+    assert cpu.grounding_search == "bounded" and gpu.grounding_search not in ("auto", "bounded", "culled")
     assert point_config(ap.parse_args(["--preset", "smoke", "--grounding-search", "culled"]), p, "gpu") \
         .grounding_search == "culled"
     with pytest.raises(ValueError, match="refine"):
@@ -215,7 +215,7 @@ def test_bench_depth_cli(tmp_path, capsys):
     assert [r["value"] for r in recs] == [9, 39]
     for r in recs:
         assert set(r) == set(DEPTH_FIELDS) and r["schema"] == DEPTH_SCHEMA
-        assert r["layout_platform"] == "cpu" and r["grounding_search"] == "culled" and r["T"] == 10.0
+        assert r["layout_platform"] == "cpu" and r["grounding_search"] == "bounded" and r["T"] == 10.0
         assert r["depth"] == sum(s["trips"] for s in r["sites"]) > 0
         assert {"where", "kind", "executions", "trips"} <= set(r["sites"][0])
     # a file of timing records is refused (psbmpc-jax report could not read it any more), and the other way round

@@ -184,17 +184,17 @@ def test_dense_search_equals_full_kernel_and_culled_search(seed, block):
         search_argmax("fast", px, py, tw, score, bound, tables, nxt, n)
 
 
-def test_auto_search_is_culled_on_the_cpu_and_flat_elsewhere():
-    assert resolve_search("auto", "cpu") == "culled"
+def test_auto_search_is_bounded_on_the_cpu_and_flat_elsewhere():
+    assert resolve_search("auto", "cpu") == "bounded"
     assert resolve_search("auto", "gpu") == "flat"
     assert resolve_search("dense", "cpu") == "dense" and resolve_search("culled", "gpu") == "culled"
     assert resolve_search("flat", "cpu") == "flat"
-    assert resolve_search("auto") == ("culled" if jax.default_backend() == "cpu" else "flat")
+    assert resolve_search("auto") == ("bounded" if jax.default_backend() == "cpu" else "flat")
     with pytest.raises(ValueError, match="grounding search must be one of"):
         resolve_search("grid")
 
 
-@pytest.mark.parametrize("search", ["culled", "dense", "flat"])
+@pytest.mark.parametrize("search", ["bounded", "culled", "dense", "flat"])
 @pytest.mark.parametrize("wind", [0.0, 4.0])
 def test_grounding_costs_equal_reference(wind, search):
     rng = np.random.default_rng(3)
@@ -228,7 +228,7 @@ def _outside_problem(seed):
     return polys, jnp.asarray(p[..., 0]), jnp.asarray(p[..., 1])
 
 
-@pytest.mark.parametrize("search", ["culled", "dense", "flat"])
+@pytest.mark.parametrize("search", ["bounded", "culled", "dense", "flat"])
 @pytest.mark.parametrize("wind", [0.0, 3.0])
 def test_gradient_equals_central_differences(wind, search):
     polys, px, py = _outside_problem(5)
@@ -254,7 +254,7 @@ def _finite(tree):
     return all(bool(jnp.all(jnp.isfinite(x))) for x in jax.tree.leaves(tree))
 
 
-@pytest.mark.parametrize("search", ["culled", "dense", "flat"])
+@pytest.mark.parametrize("search", ["bounded", "culled", "dense", "flat"])
 @pytest.mark.parametrize("wind", [0.0, 5.0])
 def test_degenerate_points_have_no_nan(wind, search):
     """On an edge, on a vertex, inside land, near but outside: value, jvp and vjp are finite."""
@@ -270,7 +270,7 @@ def test_degenerate_points_have_no_nan(wind, search):
     np.testing.assert_allclose(np.asarray(h)[0, :4], float(params.G1) * (1.0 + float(params.G3) * 5.0))
 
 
-@pytest.mark.parametrize("search", ["culled", "dense", "flat"])
+@pytest.mark.parametrize("search", ["bounded", "culled", "dense", "flat"])
 def test_zero_polygons_give_an_empty_nan_free_result(search):
     px, py = jnp.ones((5, 3)), jnp.zeros((5, 3))
     verts, nxt, n, mask = jnp.zeros((0, 4, 2)), jnp.zeros((0, 4), jnp.int32), jnp.zeros(0, jnp.int32), jnp.zeros(0, bool)
@@ -355,7 +355,7 @@ def test_flat_argmax_in_column_chunks_equals_one_pass(monkeypatch):
     np.testing.assert_array_equal(np.asarray(flat_argmax(px, py, tw, score, tables, n)), one)
 
 
-@pytest.mark.parametrize("search", ["culled", "dense", "flat"])
+@pytest.mark.parametrize("search", ["bounded", "culled", "dense", "flat"])
 def test_distances_at_equal_polygon_distance(search):
     rng = np.random.default_rng(12)
     polys = random_chart(rng)

@@ -28,7 +28,7 @@ def test_for_platform_resolves_the_auto_layouts():
     assert gpu.rollout_kernel == ("pallas" if jax.default_backend() == "cpu" else gpu.rollout_kernel)
     assert PlannerConfig().for_platform("cpu").rollout_kernel == "scan"
     cpu = PlannerConfig().for_platform("cpu")
-    assert (cpu.grounding_search, cpu.rollout_unroll, cpu.layout_platform) == ("culled", 1, "cpu")
+    assert (cpu.grounding_search, cpu.rollout_unroll, cpu.layout_platform) == ("bounded", 1, "cpu")
     kept = PlannerConfig(grounding_search="dense", rollout_unroll=3).for_platform("gpu")
     assert (kept.grounding_search, kept.rollout_unroll) == ("dense", 3)
     assert PlannerConfig().for_platform("cuda").layout_platform == "gpu"
