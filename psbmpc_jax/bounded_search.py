@@ -39,7 +39,7 @@ import functools
 import jax.numpy as jnp
 from jax import lax
 
-from .geometry import _chunks, _tiles, edge_terms, polygon_argmax
+from .geometry import edge_chunks, edge_terms, polygon_argmax, time_tiles
 
 #: Time steps per tile and edge slots per chunk.
 TILE, CHUNK = 8, 8
@@ -58,7 +58,7 @@ def use_bounded(edges) -> bool:
 
 def _lower_bound(ch, xmin, xmax, ymin, ymax, tol):
     """Lower bound of the boundary distance of every point of the boxes (x/y min/max ``[..., P, B]``) to their
-    polygon (``ch``: :class:`psbmpc_jax.geometry._Chunks`, leading axis P): 0 where the box meets a chunk box or
+    polygon (``ch``: :class:`psbmpc_jax.geometry.EdgeChunks`, leading axis P): 0 where the box meets a chunk box or
     lies inside the polygon.  One pass per chunk (unrolled: XLA:CPU fuses it; a reduction over a chunk axis ran
     9x slower)."""
     g2, inside = None, None
@@ -101,7 +101,7 @@ def _keep(values, k):
 
 def _exact(x, y, rows, n_chunks, with_direction, trailing=0):
     """Distance and nearest-boundary vector of the points ``x, y [..., Q]`` to polygon q's edges ``rows [Q, C+1,
-    8, M]`` (:class:`psbmpc_jax.geometry._Chunks` rows: null edges past the valid ones): ``d, ex, ey`` as
+    8, M]`` (:class:`psbmpc_jax.geometry.EdgeChunks` rows: null edges past the valid ones): ``d, ex, ey`` as
     :func:`psbmpc_jax.geometry.polygon_distance` (the first nearest edge in slot order), one loop step per
     chunk of M edges (unrolled inside), ``n_chunks`` steps.  ``trailing``: the axes of ``x`` after Q."""
     M = rows.shape[-1]
@@ -158,10 +158,10 @@ def bounded_candidates(px, py, tw, score, bound, edges, nxt, n, with_direction=T
     the column's tiles)."""
     T, B = px.shape
     P = edges.shape[0]
-    tiles = _tiles(px, py, tw, -(-T // -(-T // tile)))
+    tiles = time_tiles(px, py, tw, -(-T // -(-T // tile)))
     S = tiles.x.shape[1]
     nt = tiles.x.shape[0] // B
-    ch, odd_overflow = _chunks(edges, nxt, n, chunk)
+    ch, odd_overflow = edge_chunks(edges, nxt, n, chunk)
     valid_e = jnp.arange(edges.shape[1])[None, :] < n[:, None]
     scale = jnp.maximum(jnp.max(jnp.abs(jnp.where(valid_e[..., None], edges[..., :2], 0.0))),
                         jnp.maximum(jnp.max(jnp.abs(px)), jnp.max(jnp.abs(py))))

@@ -88,7 +88,7 @@ def polygon_distance(px, py, edges, n, with_direction=True, *, block=1):
 
 
 # ----------------------------------------------------------------------------------------- culled search
-class _Tiles(NamedTuple):
+class TimeTiles(NamedTuple):
     """Points ``x, y [N, S]`` in tiles (row n = column b * nt + block i) with their time features ``w [N, S]``
     and validity ``valid [N, S]`` (False on the padding past T); per tile its box (x/y min/max ``[N]``),
     centre, half-diagonal ``h`` and the largest time feature ``w_max``."""
@@ -107,7 +107,7 @@ class _Tiles(NamedTuple):
     w_max: jax.Array
 
 
-class _Chunks(NamedTuple):
+class EdgeChunks(NamedTuple):
     """One polygon's edges in chunks of M slots: ``rows [C + 1, 8, M]`` (invalid slots and chunk C are null
     edges), per chunk ``lo, hi [C, 2]`` (box of its valid edges), ``v0 [C, 2]`` (its first vertex),
     ``odd_y [C, 4]`` (y of its odd-degree vertices, -inf padded), and the number of valid chunks ``n``."""
@@ -120,7 +120,9 @@ class _Chunks(NamedTuple):
     n: jax.Array
 
 
-def _tiles(px, py, tw, S):
+def time_tiles(px, py, tw, S):
+    """:class:`TimeTiles` of ``S`` time steps of the points ``px, py [T, B]`` with time features ``tw [T]`` (the
+    last point repeated to fill the last tile)."""
     T, B = px.shape
     nt = -(-T // S)
     pad = lambda a: jnp.concatenate([a, jnp.broadcast_to(a[-1:], (nt * S - T,) + a.shape[1:])])
@@ -132,7 +134,7 @@ def _tiles(px, py, tw, S):
     hx, hy = 0.5 * (xmax - xmin), 0.5 * (ymax - ymin)
     # the half-diagonal, rounded up a little so that every point of the box is within h of the centre
     h = jnp.sqrt(hx * hx + hy * hy) * (1.0 + 4 * jnp.finfo(px.dtype).eps)
-    return _Tiles(x, y, w, valid, xmin, xmax, ymin, ymax, xmin + hx, ymin + hy, h,
+    return TimeTiles(x, y, w, valid, xmin, xmax, ymin, ymax, xmin + hx, ymin + hy, h,
                   jnp.max(jnp.where(valid, w, -jnp.inf), axis=1))
 
 
@@ -141,8 +143,8 @@ def _null_edge(dtype):
     return jnp.array([big, big, 0.0, 0.0, 0.0, big, big, 0.0], dtype)
 
 
-def _chunks(edges, nxt, n, M):
-    """:class:`_Chunks` of every polygon (leading axis P), from ``edges [P, V, 8]``, ``nxt [P, V]``, ``n [P]``.
+def edge_chunks(edges, nxt, n, M):
+    """:class:`EdgeChunks` of every polygon (leading axis P), from ``edges [P, V, 8]``, ``nxt [P, V]``, ``n [P]``.
     Also returns whether some chunk has more than 4 odd-degree vertices (impossible for rings stored back to
     back; then the caller falls back to the full search)."""
     P, V = nxt.shape
@@ -175,7 +177,7 @@ def _chunks(edges, nxt, n, M):
     pick = flags[..., None] & (pos[..., None] == jnp.arange(4))                  # [P, C, 2M, 4]
     odd_y = jnp.where(pick.any(-2), jnp.where(pick, ys[..., None], 0).sum(-2), -inf)
     odd_overflow = jnp.any(flags.sum(-1) > 4)
-    return _Chunks(rows, jnp.stack([lo_x, lo_y], -1), jnp.stack([hi_x, hi_y], -1), v0, odd_y,
+    return EdgeChunks(rows, jnp.stack([lo_x, lo_y], -1), jnp.stack([hi_x, hi_y], -1), v0, odd_y,
                    (n + M - 1) // M), odd_overflow
 
 
@@ -225,7 +227,7 @@ class _Live(NamedTuple):
     overflow: jax.Array
 
 
-def _cull(tiles: _Tiles, ch: _Chunks, tol, bound, M, KC) -> _Live:
+def _cull(tiles: TimeTiles, ch: EdgeChunks, tol, bound, M, KC) -> _Live:
     """The live edges of every tile for one polygon (module docstring, steps 1-4)."""
     N = tiles.x.shape[0]
     xmin, xmax, ymin, ymax = tiles.xmin, tiles.xmax, tiles.ymin, tiles.ymax
@@ -306,7 +308,7 @@ def _cull(tiles: _Tiles, ch: _Chunks, tol, bound, M, KC) -> _Live:
     return _Live(lwords, _bits_before(lwords), ids, count, par, idle, jnp.max(n_cand) > KC)
 
 
-def _nearest(tiles: _Tiles, ch: _Chunks, live: _Live, M, track):
+def _nearest(tiles: TimeTiles, ch: EdgeChunks, live: _Live, M, track):
     """Distance and nearest-boundary vector of every tile point to one polygon from its tile's live edges
     (module docstring, step 5): ``d, ex, ey [N, S]``; (ex, ey) are zeros unless ``track``."""
     x, y, qx, qy = tiles.x, tiles.y, tiles.xmax[:, None], tiles.ymax[:, None]
@@ -337,8 +339,8 @@ def _prepare(px, py, tw, edges, nxt, n, tile, chunk):
     """Tiles (S <= ``tile`` time steps, the fewest padded steps), every polygon's chunks, the rounding
     tolerance and whether some chunk holds too many odd-degree vertices."""
     T = px.shape[0]
-    tiles = _tiles(px, py, tw, -(-T // -(-T // tile)))
-    chunks, odd_overflow = _chunks(edges, nxt, n, chunk)
+    tiles = time_tiles(px, py, tw, -(-T // -(-T // tile)))
+    chunks, odd_overflow = edge_chunks(edges, nxt, n, chunk)
     valid = jnp.arange(edges.shape[1])[None, :] < n[:, None]
     scale = jnp.maximum(jnp.max(jnp.abs(jnp.where(valid[..., None], edges[..., :2], 0.0))),
                         jnp.maximum(jnp.max(jnp.abs(px)), jnp.max(jnp.abs(py))))
