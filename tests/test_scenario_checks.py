@@ -322,7 +322,7 @@ def test_cli_refuses_a_start_on_land_before_importing_jax(tmp_path):
     d["own_ship"]["waypoints_m"] = [[0, 0], [-300, 200], [300, 200]]
     path = write(tmp_path, d)
     code = ("import sys\n"
-            "from psbmpc_jax.cli import main\n"
+            "from psbmpc_jax.apps.cli import main\n"
             f"try:\n    main(['run', {str(path)!r}])\n"
             "except SystemExit as e:\n    print('exit', e.code)\n"
             "print('jax' in sys.modules)\n")
