@@ -272,7 +272,7 @@ def test_every_builtin_scenario_passes_the_land_checks_without_warnings():
 
 def test_geometry_script_uses_the_library_and_reports_the_loader(tmp_path, capsys):
     spec = importlib.util.spec_from_file_location("check_scenario_geometry",
-                                                  REPO / "scripts" / "check_scenario_geometry.py")
+                                                  REPO / "tools" / "check_scenario_geometry.py")
     script = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(script)
     assert script.route_clearances is sc.route_clearances
