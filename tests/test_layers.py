@@ -1,7 +1,7 @@
 """Layering of the package (read from the source with ``ast``, nothing is imported):
 
 * no module imports a private name (leading underscore) of another module of the package;
-* product code does not depend on the float64 oracle ``psbmpc_jax.reference``;
+* product code does not depend on the float64 oracle ``psbmpc_jax.reference`` (and its predictions);
 * the library (everything outside ``psbmpc_jax/apps/``) does not import the applications ``psbmpc_jax.apps`` (the
   command line, the benchmark harness, the report), not even inside a function;
 * no import cycle among the package's modules at module level (imports inside functions don't count);
@@ -25,8 +25,10 @@ PYPROJECT = PACKAGE_DIR.parent / "pyproject.toml"
 #: Modules allowed to import the reference evaluator besides reference.py itself: the benchmark harness's timing
 #: (``apps/bench_timing.py``) times the reference (``impl = "reference"`` records) next to the JAX implementation,
 #: by design; the smooth terms' float64 oracle (reference_smooth) builds on it.
-REFERENCE_USERS = {f"{PACKAGE}.reference", f"{PACKAGE}.reference_smooth", f"{PACKAGE}.reference_mcskf",
-                   f"{PACKAGE}.reference_informed", f"{PACKAGE}.apps.bench_timing"}
+REFERENCE_USERS = {f"{PACKAGE}.reference", f"{PACKAGE}.reference_prediction", f"{PACKAGE}.reference_smooth",
+                   f"{PACKAGE}.reference_mcskf", f"{PACKAGE}.reference_informed", f"{PACKAGE}.apps.bench_timing"}
+#: The sequential reference's modules (the cost evaluator and the trajectories it evaluates).
+REFERENCE_MODULES = {f"{PACKAGE}.reference", f"{PACKAGE}.reference_prediction"}
 
 
 def _module_name(path: pathlib.Path) -> str:
@@ -151,7 +153,7 @@ def test_no_private_names_imported_across_modules():
 
 def test_product_code_does_not_import_the_reference():
     bad = [f"{_where(i)} imports {i.target}" for m, imps in IMPORTS.items() if m not in REFERENCE_USERS
-           for i in imps if i.target == f"{PACKAGE}.reference"]
+           for i in imps if i.target in REFERENCE_MODULES]
     assert not bad, "the float64 reference is the test oracle, not a dependency:\n" + "\n".join(bad)
 
 
