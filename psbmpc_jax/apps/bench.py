@@ -165,7 +165,8 @@ def build_plan(args) -> list[Point]:
                 raise ValueError(f"{flag} does not apply to --preset refine (fixed cases: "
                                  f"psbmpc_jax.apps.bench_refine.REFINE_CASES)")
         if args.dt != 0.5:
-            raise ValueError("--dt does not apply to --preset refine (fixed cases: psbmpc_jax.apps.bench_refine.REFINE_CASES)")
+            raise ValueError("--dt does not apply to --preset refine (fixed cases: "
+                             "psbmpc_jax.apps.bench_refine.REFINE_CASES)")
         return []
     if args.sweep is not None and args.values is None:
         raise ValueError(f"--sweep {args.sweep} needs --values, e.g. --values 1,3,5")

@@ -18,8 +18,8 @@ from .bench_timing import default_out, select_devices
 DEPTH_SCHEMA = "psbmpc-depth/1"
 DEPTH_FIELDS = ("schema", "sweep", "swept", "value", "n_cbs", "n_ps", "n_do", "n_so", "n_vertices", "T", "dt",
                 "estimator", "dtype", "grounding_mode", "layout_platform", "grounding_search", "pc_layout",
-                "rollout_unroll", "rollout_kernel", "platform", "host", "depth", "loop_executions", "sites", "versions", "commit",
-                "timestamp")
+                "rollout_unroll", "rollout_kernel", "platform", "host", "depth", "loop_executions", "sites", "versions",
+                "commit", "timestamp")
 
 
 

@@ -24,7 +24,8 @@ FIELDS = ("schema", "sweep", "swept", "impl", "platform", "device_kind", "n_devi
           "grounding_mode", "grounding_search", "n_M", "n_cbs", "n_do", "n_ps", "n_so", "n_vertices", "n_ct", "T",
           "dt", "compile_s",
           "times_ms", "median_ms", "min_ms", "max_ms", "q1_ms", "q3_ms", "peak_memory_bytes", "memory_source",
-          "compiled_memory_bytes", "r_ct", "best", "n_pc_blocks", "schedule", "skipped", "skip_reason", "versions", "commit", "timestamp")
+          "compiled_memory_bytes", "r_ct", "best", "n_pc_blocks", "schedule", "skipped", "skip_reason", "versions",
+          "commit", "timestamp")
 
 
 def stats_ms(times_s) -> dict:
@@ -159,7 +160,8 @@ class Runner:
         else:
             rec.update(peak_memory_bytes=max(0, peak_rss_bytes() - rss0), memory_source="process_rss")
         rec.update(platform=dev.platform, device_kind=dev.device_kind, n_devices=len(devices) if multi else 1,
-                   grounding_search=config.grounding_search, compile_s=round(compile_s, 4), schedule=self.args.schedule, compiled_memory_bytes=planned)
+                   grounding_search=config.grounding_search, compile_s=round(compile_s, 4),
+                   schedule=self.args.schedule, compiled_memory_bytes=planned)
         return {"point": p, "call": call, "rec": rec, "ev": ev, "times": []}
 
     def time_jax(self, slots) -> tuple[list, bool]:
