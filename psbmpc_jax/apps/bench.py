@@ -82,6 +82,7 @@ import os
 import sys
 import time
 
+from ..layouts import GROUNDING_SEARCHES
 from .argtypes import nonneg_float, nonneg_int, odd_int, positive_float, positive_int
 from .bench_depth import depth_out_problem, run_depth
 from .bench_points import PAPER_FIGS, PRESETS, SWEEPS, Point, behaviours_for, make_points, parse_values, \
@@ -105,8 +106,8 @@ def add_bench_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--estimator", choices=ESTIMATORS, default="quadrature")
     p.add_argument("--dtype", choices=("float32", "float64"), default="float32")
     p.add_argument("--grounding", choices=("exact", "grid"), default="exact", help="grounding mode")
-    p.add_argument("--grounding-search", choices=("auto", "culled", "dense", "flat"), default="auto",
-                   help="exact mode's layout (PlannerConfig.grounding_search; default auto: culled on the CPU, "
+    p.add_argument("--grounding-search", choices=GROUNDING_SEARCHES, default="auto",
+                   help="exact mode's layout (PlannerConfig.grounding_search; default auto: bounded on the CPU, "
                         "flat on a GPU; records hold the one used)")
     p.add_argument("--n-m", type=int, choices=(1, 2), default=None,
                    help="paper behaviour set for sweeps other than n_cbs: 1 -> 39, 2 -> 1014 (default)")
