@@ -7,7 +7,7 @@ package (``new``) and by another copy of it (``old``: a directory holding the pa
 e.g. ``git worktree add /tmp/old <commit> && mkdir /tmp/oldpkg && cp -r /tmp/old/psbmpc_jax
 /tmp/oldpkg/psbmpc_old``).  Every slot is compiled first; then ``--repeats`` rounds time every slot once
 (:func:`_common.time_interleaved`), so the shared machine's slow and fast spells fall on both versions alike.
-Each version solves its own copy of the situation (built by its own ``bench`` module) with its own default
+Each version solves its own copy of the situation (built by its own bench-points module) with its own default
 layouts; the chosen behaviours are recorded and compared.
 
 Usage: python benchmarks/bench_ab_points.py --baseline /tmp/oldpkg [--presets fig5,fig7,fig9] [--repeats 10]
@@ -26,8 +26,20 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from _common import environment_meta, time_interleaved, write_results  # noqa: E402
 
 
+def points_module(pkg_name: str):
+    """The module that builds the bench points of ``pkg_name`` and its situation builder: ``apps.bench_points``
+    (``situation_for``), or ``bench`` (``_situation``) in a baseline from before the applications moved to
+    ``psbmpc_jax.apps``."""
+    try:
+        bench = importlib.import_module(f"{pkg_name}.apps.bench_points")
+        return bench, bench.situation_for
+    except ModuleNotFoundError:
+        bench = importlib.import_module(f"{pkg_name}.bench")
+        return bench, bench._situation
+
+
 def slots_for(pkg_name: str, label: str, presets):
-    bench = importlib.import_module(f"{pkg_name}.bench")
+    bench, situation_for = points_module(pkg_name)
     pkg = importlib.import_module(pkg_name)
     solve = importlib.import_module(f"{pkg_name}.solve").solve
     out = []
@@ -45,7 +57,7 @@ def slots_for(pkg_name: str, label: str, presets):
             continue
         swept, values, fixed = bench.PRESETS[preset]
         for p in bench.make_points(swept, values, fixed, preset):
-            sit = bench._situation(p)
+            sit = situation_for(p)
             beh = bench.behaviours_for(p.n_cbs)
             config = pkg.PlannerConfig(T=p.T)
             planner = pkg.Planner(config, params=pkg.Params(r_ct=p.r_ct), behaviours=beh)

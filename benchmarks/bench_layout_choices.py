@@ -24,7 +24,7 @@ from _common import environment_meta, time_interleaved, write_results  # noqa: E
 
 
 def rollout_slots(unrolls):
-    from psbmpc_jax.bench import behaviours_for
+    from psbmpc_jax.apps.bench_points import behaviours_for
     from psbmpc_jax.ownship import make_path, ownship_rollouts
     from psbmpc_jax.params import Params
 
@@ -46,13 +46,13 @@ def argmax_slots(tiles):
     from bench_cpu_targets import situation as islands
 
     from psbmpc_jax import Params, Planner, PlannerConfig
-    from psbmpc_jax.bench import Point, _situation, behaviours_for
+    from psbmpc_jax.apps.bench_points import Point, behaviours_for, situation_for
     from psbmpc_jax.costs.grounding import _search_score
     from psbmpc_jax.evaluate import context
     from psbmpc_jax.geometry import edge_table, polygon_argmax
 
-    cases = {"fig5 13 polygons": (_situation(Point("x", "n_cbs", 1014, n_cbs=1014, n_ps=1)), 150.0, 1014),
-             "fig9 raw polygon": (_situation(Point("x", "n_vertices", 0.0, eps=0.0, still=True, largest_only=True,
+    cases = {"fig5 13 polygons": (situation_for(Point("x", "n_cbs", 1014, n_cbs=1014, n_ps=1)), 150.0, 1014),
+             "fig9 raw polygon": (situation_for(Point("x", "n_vertices", 0.0, eps=0.0, still=True, largest_only=True,
                                                    n_so=1)), 150.0, 1014),
              "three islands": (islands(True), 120.0, 1014)}
     out = []

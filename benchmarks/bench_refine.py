@@ -1,6 +1,6 @@
 """PSB-MPC + refinement benchmark at Nidelva scale (docs/refine.md): the Nidelva head-on on the Trondheim chart
 (2 obstacles x 5 scenarios, the 13 Table-2 polygons after RDP 2 m, grid grounding, 1014 behaviours), the Nidelva
-preset, float32, this device.  Slots (``psbmpc_jax.bench.REFINE_CASES``):
+preset, float32, this device.  Slots (``psbmpc_jax.apps.bench_refine.REFINE_CASES``):
 
 * ``refine``: the whole ``psbmpc_jax.refine.refine`` call (warm starts from the grid's ranking, the solves,
   the safeguard, the grid cost of the result), at 1, 4 and 16 starts, ``map`` and ``vmap``, for
@@ -36,12 +36,12 @@ def main(argv=None) -> int:
     ap.add_argument("--repeats", type=int, default=20)
     ap.add_argument("--warmup", type=int, default=2)
     ap.add_argument("--cases", default="nidelva,nidelva_T60,paper000",
-                    help="comma-separated case names of psbmpc_jax.bench.REFINE_CASES")
+                    help="comma-separated case names of psbmpc_jax.apps.bench_refine.REFINE_CASES")
     ap.add_argument("--slots", default=None,
                     help="comma-separated case:starts:batch entries of REFINE_CASES to keep (default: all of --cases)")
     ap.add_argument("--out", default=os.path.join(os.path.dirname(os.path.abspath(__file__)), "results"))
     args = ap.parse_args(argv)
-    from psbmpc_jax.bench import REFINE_CASES, refine_benchmark
+    from psbmpc_jax.apps.bench_refine import REFINE_CASES, refine_benchmark
 
     names = [c for c in args.cases.split(",") if c]
     known = sorted({c[0] for c in REFINE_CASES})

@@ -28,7 +28,7 @@ if [ -d .whl ] && [ -z "${SMALL:-}" ]; then
   python3 -m pip install -q --no-index --no-deps --no-build-isolation -e . >/dev/null 2>&1 \
     || echo "editable install failed; using PYTHONPATH"
 fi
-pj() { python3 -c 'import sys; from psbmpc_jax.cli import main; sys.exit(main(sys.argv[1:]))' "$@"; }
+pj() { python3 -c 'import sys; from psbmpc_jax.apps.cli import main; sys.exit(main(sys.argv[1:]))' "$@"; }
 { nvidia-smi --query-gpu=name,memory.total,driver_version,clocks.max.sm --format=csv 2>&1; nproc;
   python3 -c 'import jax, jaxlib; print(jax.__version__, jaxlib.__version__, jax.devices())' 2>&1; } \
   | tee "$OUT/host.txt"

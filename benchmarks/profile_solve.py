@@ -80,7 +80,7 @@ def main(argv=None) -> int:
     from functools import partial
 
     from psbmpc_jax import Params, Planner, PlannerConfig
-    from psbmpc_jax.bench import Point, _situation, behaviours_for
+    from psbmpc_jax.apps.bench_points import Point, behaviours_for, situation_for
     from psbmpc_jax.depth import sequential_depth
     from psbmpc_jax.solve import solve
 
@@ -88,7 +88,7 @@ def main(argv=None) -> int:
     p = Point(sweep="profile", swept="n_cbs", value=args.n_cbs, n_cbs=args.n_cbs, n_ps=args.n_ps, n_do=args.n_do)
     config = PlannerConfig(T=p.T).for_platform(platform)
     planner = Planner(config, params=Params(r_ct=p.r_ct), behaviours=behaviours_for(p.n_cbs))
-    prepared = jax.device_put(planner.prepare(_situation(p)))
+    prepared = jax.device_put(planner.prepare(situation_for(p)))
     t0 = time.perf_counter()
     compiled = solve.lower(*prepared, config=config).compile()
     compile_s = time.perf_counter() - t0

@@ -1,6 +1,6 @@
 """Provenance of a result file: the source commit and the software versions it was produced with.
 
-Shared by the benchmark harness (:mod:`psbmpc_jax.bench`, ``benchmarks/``) and the simulator's outputs
+Shared by the benchmark harness (:mod:`psbmpc_jax.apps.bench`, ``benchmarks/``) and the simulator's outputs
 (:mod:`psbmpc_jax.sim.output`).
 """
 

@@ -165,7 +165,7 @@ def informed_cost(own_traj, targets, roles, t, polygons=(), *, K_coll=0.5, kappa
 def situation_targets(situation, params, config, r18=None) -> tuple[list, list]:
     """Every (obstacle, scenario) trajectory ``[N + 1, 4]`` of a situation (float64 reference prediction) and its
     role: ``r18[i]`` when given (one flag per obstacle), else ``getattr(obstacle, "rule18", False)``."""
-    from .reference import obstacle_scenarios
+    from .reference_prediction import obstacle_scenarios
 
     obstacles = situation.obstacles
     if r18 is not None:

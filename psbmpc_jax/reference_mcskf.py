@@ -194,7 +194,7 @@ def pair_series(own_traj, tgt_traj, t, Sigma, Z, *, d_safe: float = 40.0, eps_v:
 def situation_obstacles(situation, params, config) -> list:
     """``[(scenario trajectories [S, N+1, 4], probabilities [S], covariance [4, 4]), ...]`` of a situation's
     obstacles (the sequential reference's scenario rollouts; an obstacle with weight 0 gets probability 0)."""
-    from .reference import obstacle_scenarios
+    from .reference_prediction import obstacle_scenarios
 
     out = []
     for ob in situation.obstacles:

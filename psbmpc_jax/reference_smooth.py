@@ -157,7 +157,7 @@ def colregs_boolean(own, tgt, d_cl: float = 40.0, v_eps: float = 0.05) -> float:
 def applied_trajectory(situation, behaviour, last_offsets, params, config) -> np.ndarray:
     """The own-ship trajectory ``[N+1, 4]`` of the applied offsets ``last_offsets`` held over every maneuver of
     ``behaviour``'s shape (the rollout the transitional term compares passing sides against)."""
-    from .reference import ownship_trajectory
+    from .reference_prediction import ownship_trajectory
 
     held = np.broadcast_to(np.asarray(last_offsets, float), np.shape(behaviour)).copy()
     return ownship_trajectory(situation.own_ship, held, params, config)
@@ -344,6 +344,6 @@ __all__ = [
 def obstacle_targets(situation, params, config):
     """Every (obstacle, scenario) trajectory ``[N + 1, 4]`` of a situation, from the float64 reference: the
     point targets the smooth terms' ``reference`` methods compare with."""
-    from .reference import obstacle_scenarios
+    from .reference_prediction import obstacle_scenarios
 
     return [traj for ob in situation.obstacles for traj in obstacle_scenarios(ob, params, config)]

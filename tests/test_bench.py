@@ -10,8 +10,9 @@ from pathlib import Path
 
 import pytest
 
-from psbmpc_jax.bench import FIELDS, SCHEMA, behaviours_for
-from psbmpc_jax.cli import main
+from psbmpc_jax.apps.bench_points import behaviours_for
+from psbmpc_jax.apps.bench_timing import FIELDS, SCHEMA
+from psbmpc_jax.apps.cli import main
 
 FAST = ["--repeats", "2", "--warmup", "0", "--devices", "cpu", "--quiet"]
 ONE_POINT = ["--sweep", "n_cbs", "--values", "9", "--T", "10"]
@@ -158,7 +159,7 @@ def test_behaviour_sets_sizes():
 
 def test_fixed_fan_presets_scale_r_ct():
     """fig6s/fig7s keep the scenario fan 40 m wide: r_ct = 40 / (n_ps - 1); fig6/fig7 keep Table 1's 10 m."""
-    from psbmpc_jax.bench import add_bench_arguments, build_plan
+    from psbmpc_jax.apps.bench import add_bench_arguments, build_plan
     import argparse
 
     ap = argparse.ArgumentParser()
@@ -193,7 +194,7 @@ class _FakeEval:
 
 def _fake_slots(log, fail_at=None):
     """Two timing slots whose calls append to ``log``; call number ``fail_at`` raises KeyboardInterrupt."""
-    from psbmpc_jax.bench import FIELDS
+    from psbmpc_jax.apps.bench_timing import FIELDS
 
     def make(name, best):
         def call():
@@ -209,7 +210,7 @@ def _fake_slots(log, fail_at=None):
 def _runner(repeats):
     import argparse
 
-    from psbmpc_jax.bench import Runner
+    from psbmpc_jax.apps.bench_timing import Runner
 
     return Runner(argparse.Namespace(repeats=repeats), fh=None)
 
@@ -249,7 +250,7 @@ def test_multi_device_points_match_single_device(tmp_path):
     env = dict(os.environ, JAX_PLATFORMS="cpu")
     env["XLA_FLAGS"] = (env.get("XLA_FLAGS", "") + " --xla_force_host_platform_device_count=2").strip()
     env["PYTHONPATH"] = os.pathsep.join(p for p in (str(root), env.get("PYTHONPATH")) if p)
-    code = ("import sys; from psbmpc_jax.cli import main; sys.exit(main(['bench', '--preset', 'smoke', "
+    code = ("import sys; from psbmpc_jax.apps.cli import main; sys.exit(main(['bench', '--preset', 'smoke', "
             "'--multi-device', '--reference-budget', '0', '--out', sys.argv[1], "
             + ", ".join(repr(a) for a in FAST) + "]))")
     proc = subprocess.run([sys.executable, "-c", code, str(out)], env=env, capture_output=True, text=True,

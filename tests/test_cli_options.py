@@ -12,9 +12,9 @@ import jax
 import pytest
 
 import psbmpc_jax
-from psbmpc_jax import cli
-from psbmpc_jax.bench import default_out
-from psbmpc_jax.cli import build_parser, main
+from psbmpc_jax.apps import cli
+from psbmpc_jax.apps.bench_timing import default_out
+from psbmpc_jax.apps.cli import build_parser, main
 
 FIX = pathlib.Path(__file__).resolve().parent / "fixtures" / "bench"
 

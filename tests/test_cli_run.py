@@ -15,7 +15,7 @@ import time
 import numpy as np
 import pytest
 
-from psbmpc_jax.cli import main
+from psbmpc_jax.apps.cli import main
 from psbmpc_jax.sim import load_trajectories
 
 TINY_MC = (
@@ -126,7 +126,7 @@ def test_list_has_descriptions_and_paths(capsys):
 
 def test_no_broken_pipe_traceback():
     """`psbmpc-jax run --list | head -1`: the reader is gone before the listing is written."""
-    proc = subprocess.Popen([sys.executable, "-c", "import sys; from psbmpc_jax.cli import main; "
+    proc = subprocess.Popen([sys.executable, "-c", "import sys; from psbmpc_jax.apps.cli import main; "
                              "sys.exit(main(['run', '--list']))"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     proc.stdout.close()                     # like head -1 exiting: every write gets EPIPE
     err = proc.stderr.read().decode()

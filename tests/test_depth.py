@@ -169,7 +169,7 @@ def test_report_table_and_merge():
 
 def test_small_solve():
     from psbmpc_jax import Planner
-    from psbmpc_jax.bench import behaviours_for
+    from psbmpc_jax.apps.bench_points import behaviours_for
     from psbmpc_jax.examples import nidelva_head_on
     from psbmpc_jax.params import PlannerConfig
     from psbmpc_jax.solve import solve
@@ -190,7 +190,8 @@ def test_small_solve():
 def test_point_config_layout_platform():
     import argparse
 
-    from psbmpc_jax.bench import add_bench_arguments, build_plan, point_config
+    from psbmpc_jax.apps.bench import add_bench_arguments, build_plan
+    from psbmpc_jax.apps.bench_points import point_config
 
     ap = argparse.ArgumentParser()
     add_bench_arguments(ap)
@@ -205,8 +206,8 @@ def test_point_config_layout_platform():
 
 
 def test_bench_depth_cli(tmp_path, capsys):
-    from psbmpc_jax.bench import DEPTH_FIELDS, DEPTH_SCHEMA
-    from psbmpc_jax.cli import main
+    from psbmpc_jax.apps.bench_depth import DEPTH_FIELDS, DEPTH_SCHEMA
+    from psbmpc_jax.apps.cli import main
 
     out = tmp_path / "depth.jsonl"
     assert main(["bench", "--preset", "smoke", "--depth", "--out", str(out), "--layout-platform", "cpu"]) == 0
@@ -234,14 +235,14 @@ def _paper_solve(platform: str, **config_fields):
     """fig5's 1 014-behaviour point (Nidelva head-on, n_ps 1, 2 obstacles, 13 polygons, exact grounding,
     quadrature, T 150 s) with the default configuration's layouts chosen as on ``platform``."""
     from psbmpc_jax import Params, Planner
-    from psbmpc_jax.bench import Point, _situation, behaviours_for
+    from psbmpc_jax.apps.bench_points import Point, behaviours_for, situation_for
     from psbmpc_jax.params import PlannerConfig
     from psbmpc_jax.solve import solve
 
     p = Point(sweep="pin", swept="n_cbs", value=1014, n_cbs=1014, n_ps=1)
     config = PlannerConfig(T=p.T, **config_fields).for_platform(platform)
     planner = Planner(config, params=Params(r_ct=p.r_ct), behaviours=behaviours_for(p.n_cbs))
-    return functools.partial(solve, config=config), planner.prepare(_situation(p))
+    return functools.partial(solve, config=config), planner.prepare(situation_for(p))
 
 
 def test_default_gpu_layout_depth_is_pinned():

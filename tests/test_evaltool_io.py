@@ -289,7 +289,7 @@ def test_run_outputs_carry_the_scores(tmp_path):
     written trajectories gives the same numbers."""
     import json
 
-    from psbmpc_jax.cli import main
+    from psbmpc_jax.apps.cli import main
     from psbmpc_jax.scenario import scenario_from_dict
     from psbmpc_jax.sim import simulate
     from psbmpc_jax.sim.output import write_outputs
@@ -316,7 +316,7 @@ def test_run_outputs_carry_the_scores(tmp_path):
 
 
 def test_evaluate_cli_errors(tmp_path, capsys):
-    from psbmpc_jax.cli import main
+    from psbmpc_jax.apps.cli import main
 
     bad = tmp_path / "bad.csv"
     bad.write_text("a,b\n1,2\n")

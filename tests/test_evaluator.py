@@ -38,6 +38,7 @@ from psbmpc_jax import (
     paper_behaviours,
 )
 from psbmpc_jax import reference as ref_mod
+from psbmpc_jax import reference_prediction as pred
 from psbmpc_jax.costs import collision as col
 from psbmpc_jax.evaluate import Evaluation, evaluate_arrays
 from psbmpc_jax.packing import SolveInputs
@@ -597,7 +598,7 @@ def test_ou_covariance_general_matches_reference():
     t = np.array([0.0, 0.5, 4.0, 25.0, 150.0])
     sig = np.asarray(ou_covariance(jnp.asarray(t), p))
     for k, tk in enumerate(t):
-        want = ref_mod.ou_covariance(tk, p)
+        want = pred.ou_covariance(tk, p)
         np.testing.assert_allclose(sig[k], want, rtol=1e-12, atol=1e-16)
         np.testing.assert_allclose(sig[k], sig[k].T, rtol=1e-14, atol=1e-16)
     P0 = np.diag([2.0, 1.0, 0.1, 0.2])
@@ -605,7 +606,7 @@ def test_ou_covariance_general_matches_reference():
     ob = Obstacle(state=[0, 0, 1, 0], cov=P0)
     cfg = PlannerConfig(T=10.0, dt=0.5)
     got = np.asarray(obstacle_covariances(jnp.asarray(P0)[None], p, cfg.n_steps, cfg.dt))[0]
-    np.testing.assert_allclose(got, ref_mod.obstacle_covariances(ob, p, cfg), rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(got, pred.obstacle_covariances(ob, p, cfg), rtol=1e-12, atol=1e-15)
 
 
 # ============================================================================ head-on

@@ -15,6 +15,7 @@ import pytest
 
 from psbmpc_jax import Obstacle, OwnShip, Params, PlannerConfig, Situation
 from psbmpc_jax import reference as ref_mod
+from psbmpc_jax import reference_prediction as pred
 from psbmpc_jax import reference_informed as ri
 from psbmpc_jax import reference_smooth as rs
 from psbmpc_jax.behaviours import enumerate_behaviours_deg
@@ -408,7 +409,7 @@ def test_reference_reads_the_obstacle_role_attribute():
         object.__setattr__(ob, "rule18", True)                # what the Obstacle field will carry
     sit_marked = Situation(sit.own_ship, tuple(marked), sit.polygons)
     term = inf.InformedSbmpcTerm()
-    traj = ref_mod.ownship_trajectory(sit.own_ship, SEARCH[6], PARAMS, cfg)
+    traj = pred.ownship_trajectory(sit.own_ship, SEARCH[6], PARAMS, cfg)
     by_attr = term.reference(traj, SEARCH[6], sit_marked, PARAMS, cfg)
     explicit = term.reference(traj, SEARCH[6], random_situation(1), PARAMS, cfg, r18=[True] * 5)
     plain = term.reference(traj, SEARCH[6], random_situation(1), PARAMS, cfg)

@@ -240,7 +240,7 @@ def test_prediction_at_leg_speeds_matches_the_reference():
     """An obstacle with per-leg speeds is predicted at each leg's speed (after the last waypoint the last
     leg's): the evaluator's float64 rollout equals the sequential reference's, and its speed settles at the
     second leg's value after the turn."""
-    from psbmpc_jax import reference as ref_mod
+    from psbmpc_jax import reference_prediction as pred
 
     cfg = PlannerConfig(T=300.0, dt=5.0, dtype="float64")
     prm = Params(ob_T_chi=15.0, ob_T_U=30.0, ob_lookahead=300.0)
@@ -251,7 +251,7 @@ def test_prediction_at_leg_speeds_matches_the_reference():
     ev = evaluate(pack(Situation(own, (ob,)), np.array([[[1.0, 0.0]]]), cfg), jnp.asarray([1.0, 0.0]), prm, None,
                   config=cfg)
     got = np.stack([np.asarray(getattr(ev.obstacles, c))[:, 0, 0] for c in ("x", "y", "chi", "U")], axis=1)
-    ref = ref_mod.obstacle_scenarios(ob, prm, cfg)[0]
+    ref = pred.obstacle_scenarios(ob, prm, cfg)[0]
     np.testing.assert_allclose(got, ref, rtol=1e-10, atol=1e-8)
     assert got[-1, 3] == pytest.approx(2.5, abs=0.05) and got[10, 3] == pytest.approx(6.0, abs=0.05)
     with pytest.raises(ValueError, match=r"obstacle.leg_speeds needs obstacle.waypoints"):

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 import shapely
 
-from psbmpc_jax import reference as ref
+from psbmpc_jax import reference_prediction as pred
 from psbmpc_jax import reference_smooth as rs
 from psbmpc_jax.packing import pack_world
 from psbmpc_jax.params import PlannerConfig
@@ -70,7 +70,7 @@ def oracle_init_stage(state0, route, targets, last, polys, w: SmoothWeights, s: 
                             -1) for x, y, c, U in tg]
         totals = []
         for u, c in table:
-            own = ref.los_rollout(state, route, c, m.U_d * u, 0.0, m.lookahead, m.R_a, m.T_chi, m.T_U, s.dt, n)
+            own = pred.los_rollout(state, route, c, m.U_d * u, 0.0, m.lookahead, m.R_a, m.T_chi, m.T_U, s.dt, n)
             hazard = rs.sbmpc_cost(own, tg_traj, t, component="joint", aggregation="max", **kw) if len(tg) else 0.0
             gamma = rs.gamma_smooth(u, c, lst[0], lst[1], **gw)
             totals.append(hazard + gamma + w.k_ntp * (n - oracle_n_tp(own[:, :2], polys, oracle_radius(state, polys,
@@ -82,7 +82,7 @@ def oracle_init_stage(state0, route, targets, last, polys, w: SmoothWeights, s: 
         psi.append(psi[-1])        # replaced below by the exact rollout of the applied offsets
         tg = np.array([[x + U * math.cos(cc) * s.dt, y + U * math.sin(cc) * s.dt, cc, U] for x, y, cc, U in tg])
         seq = np.asarray(controls)
-        full = ref.los_rollout(state0, route, seq[:, 1], m.U_d * seq[:, 0], 0.0, m.lookahead, m.R_a, m.T_chi,
+        full = pred.los_rollout(state0, route, seq[:, 1], m.U_d * seq[:, 0], 0.0, m.lookahead, m.R_a, m.T_chi,
                                m.T_U, s.dt, len(seq))
         state = full[-1]
         psi[-1] = state

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from psbmpc_jax import Obstacle, OwnShip, Params, PlannerConfig, Situation
-from psbmpc_jax import argtypes, checks
+from psbmpc_jax import checks
+from psbmpc_jax.apps import argtypes
 from psbmpc_jax.params import validate_params
 
 WPS = [[0.0, 0.0], [100.0, 0.0]]

@@ -1,8 +1,9 @@
 """Layering of the package (read from the source with ``ast``, nothing is imported):
 
 * no module imports a private name (leading underscore) of another module of the package;
-* product code does not depend on the float64 oracle ``psbmpc_jax.reference``;
-* the simulator (``psbmpc_jax/sim/``) does not depend on the benchmark harness ``psbmpc_jax.bench``;
+* product code does not depend on the float64 oracle ``psbmpc_jax.reference`` (and its predictions);
+* the library (everything outside ``psbmpc_jax/apps/``) does not import the applications ``psbmpc_jax.apps`` (the
+  command line, the benchmark harness, the report), not even inside a function;
 * no import cycle among the package's modules at module level (imports inside functions don't count);
 * ``py.typed`` ships with the package.
 """
@@ -21,11 +22,13 @@ PACKAGE = "psbmpc_jax"
 PACKAGE_DIR = pathlib.Path(importlib.util.find_spec(PACKAGE).submodule_search_locations[0]).resolve()
 PYPROJECT = PACKAGE_DIR.parent / "pyproject.toml"
 
-#: Modules allowed to import the reference evaluator besides reference.py itself: the benchmark harness
-#: times the reference (``impl = "reference"`` records) next to the JAX implementation, by design; the smooth
-#: terms' float64 oracle (reference_smooth) builds on it.
-REFERENCE_USERS = {f"{PACKAGE}.reference", f"{PACKAGE}.reference_smooth", f"{PACKAGE}.reference_mcskf",
-                   f"{PACKAGE}.reference_informed", f"{PACKAGE}.bench"}
+#: Modules allowed to import the reference evaluator besides reference.py itself: the benchmark harness's timing
+#: (``apps/bench_timing.py``) times the reference (``impl = "reference"`` records) next to the JAX implementation,
+#: by design; the smooth terms' float64 oracle (reference_smooth) builds on it.
+REFERENCE_USERS = {f"{PACKAGE}.reference", f"{PACKAGE}.reference_prediction", f"{PACKAGE}.reference_smooth",
+                   f"{PACKAGE}.reference_mcskf", f"{PACKAGE}.reference_informed", f"{PACKAGE}.apps.bench_timing"}
+#: The sequential reference's modules (the cost evaluator and the trajectories it evaluates).
+REFERENCE_MODULES = {f"{PACKAGE}.reference", f"{PACKAGE}.reference_prediction"}
 
 
 def _module_name(path: pathlib.Path) -> str:
@@ -150,14 +153,22 @@ def test_no_private_names_imported_across_modules():
 
 def test_product_code_does_not_import_the_reference():
     bad = [f"{_where(i)} imports {i.target}" for m, imps in IMPORTS.items() if m not in REFERENCE_USERS
-           for i in imps if i.target == f"{PACKAGE}.reference"]
+           for i in imps if i.target in REFERENCE_MODULES]
     assert not bad, "the float64 reference is the test oracle, not a dependency:\n" + "\n".join(bad)
 
 
-def test_simulator_does_not_import_the_benchmark_harness():
-    bad = [f"{_where(i)} imports {i.target}" for m, imps in IMPORTS.items() if m.startswith(f"{PACKAGE}.sim")
-           for i in imps if i.target == f"{PACKAGE}.bench" or i.target.startswith(f"{PACKAGE}.bench.")]
-    assert not bad, "psbmpc_jax/sim must not depend on psbmpc_jax.bench:\n" + "\n".join(bad)
+APPS = f"{PACKAGE}.apps"
+
+
+def test_library_does_not_import_the_applications():
+    """The applications (CLI, benchmark harness, report) sit on top of the library: no module outside
+    ``psbmpc_jax/apps/`` imports them, at module level or inside a function."""
+    bad = [f"{_where(i)} imports {i.target}" for m, imps in IMPORTS.items()
+           if m != APPS and not m.startswith(APPS + ".")
+           for i in imps if i.target == APPS or i.target.startswith(APPS + ".")]
+    assert not bad, "the library must not depend on psbmpc_jax.apps:\n" + "\n".join(bad)
+    # the check sees the applications' own imports of the library (the parser resolves the relative ``..``)
+    assert any(i.target == f"{PACKAGE}.provenance" for i in IMPORTS[f"{APPS}.bench_timing"])
 
 
 def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:

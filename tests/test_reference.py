@@ -1,4 +1,5 @@
-"""Unit tests of the sequential float64 reference (psbmpc_jax.reference), piece by piece."""
+"""Unit tests of the sequential float64 reference (psbmpc_jax.reference and reference_prediction), piece by
+piece."""
 
 from __future__ import annotations
 
@@ -17,15 +18,17 @@ from psbmpc_jax.reference import (
     collision_probability,
     evaluate_reference,
     grounding_cost,
+    path_cost,
+    polygon_distance,
+    sigma_max,
+)
+from psbmpc_jax.reference_prediction import (
     los_rollout,
     maneuver_start_steps,
     obstacle_covariances,
     obstacle_scenarios,
     ou_covariance,
     ownship_trajectory,
-    path_cost,
-    polygon_distance,
-    sigma_max,
     wrap_angle,
 )
 

@@ -404,7 +404,8 @@ def test_no_nan_at_the_edges(fixed_caps):
 def test_bench_refine_preset_is_accepted_and_checked():
     import argparse
 
-    from psbmpc_jax.bench import REFINE_CASES, add_bench_arguments, build_plan
+    from psbmpc_jax.apps.bench import add_bench_arguments, build_plan
+    from psbmpc_jax.apps.bench_refine import REFINE_CASES
 
     ap = argparse.ArgumentParser()
     add_bench_arguments(ap)

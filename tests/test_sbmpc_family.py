@@ -255,7 +255,7 @@ def test_seed_004_scenarios_load_and_b_is_the_generators_output():
         assert (sc.mpc.config.T, sc.mpc.config.dt, len(sc.mpc.behaviours)) == (200.0, 0.5, 39)
         assert (sc.sensor.position_std, sc.sensor.period, sc.sensor.filter_R_scale, sc.sensor.U_max) == (5, 2.5, 25, 9)
     assert len(a.targets) == 1 and len(b.targets) == 13
-    gen = subprocess.run([sys.executable, str(REPO / "scripts" / "make_tengesdal2020_b.py"), "--check"],
+    gen = subprocess.run([sys.executable, str(REPO / "tools" / "make_tengesdal2020_b.py"), "--check"],
                          capture_output=True, text=True)
     assert gen.returncode == 0, gen.stderr
     assert load_scenario("tengesdal2020_a", method="sbmpc").own_ship.colav == "sbmpc"

@@ -656,7 +656,7 @@ def test_imazu_files_reproduce_the_csv():
 
 
 def load_generator():
-    spec = importlib.util.spec_from_file_location("make_imazu_scenarios", REPO / "scripts" / "make_imazu_scenarios.py")
+    spec = importlib.util.spec_from_file_location("make_imazu_scenarios", REPO / "tools" / "make_imazu_scenarios.py")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod

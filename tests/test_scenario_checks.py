@@ -272,7 +272,7 @@ def test_every_builtin_scenario_passes_the_land_checks_without_warnings():
 
 def test_geometry_script_uses_the_library_and_reports_the_loader(tmp_path, capsys):
     spec = importlib.util.spec_from_file_location("check_scenario_geometry",
-                                                  REPO / "scripts" / "check_scenario_geometry.py")
+                                                  REPO / "tools" / "check_scenario_geometry.py")
     script = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(script)
     assert script.route_clearances is sc.route_clearances
@@ -322,7 +322,7 @@ def test_cli_refuses_a_start_on_land_before_importing_jax(tmp_path):
     d["own_ship"]["waypoints_m"] = [[0, 0], [-300, 200], [300, 200]]
     path = write(tmp_path, d)
     code = ("import sys\n"
-            "from psbmpc_jax.cli import main\n"
+            "from psbmpc_jax.apps.cli import main\n"
             f"try:\n    main(['run', {str(path)!r}])\n"
             "except SystemExit as e:\n    print('exit', e.code)\n"
             "print('jax' in sys.modules)\n")

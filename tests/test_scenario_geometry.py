@@ -1,4 +1,4 @@
-"""Geometry of the shipped Nidelva and Sakshaug scenario files (scripts/check_scenario_geometry.py): routes
+"""Geometry of the shipped Nidelva and Sakshaug scenario files (tools/check_scenario_geometry.py): routes
 clear of land, starts in water, and nominal CPAs that make the scenarios real avoidance tests.  Reads the
 YAML directly (independent of the loader in psbmpc_jax.scenario)."""
 
@@ -15,7 +15,7 @@ REPO = pathlib.Path(__file__).resolve().parents[1]
 SCENARIOS = REPO / "psbmpc_jax" / "scenarios"
 
 _spec = importlib.util.spec_from_file_location("check_scenario_geometry",
-                                               REPO / "scripts" / "check_scenario_geometry.py")
+                                               REPO / "tools" / "check_scenario_geometry.py")
 geo = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(geo)
 route_clearances = geo.route_clearances

@@ -24,7 +24,7 @@ import numpy as np
 import pytest
 import yaml
 
-from psbmpc_jax.cli import main
+from psbmpc_jax.apps.cli import main
 from psbmpc_jax.scenario import (METHODS, FisSpec, RefineSpec, SmoothSpec, SolverSpec, load_scenario,
                                  scenario_from_dict)
 from psbmpc_jax.scenario_checks import ScenarioWarning

@@ -10,7 +10,7 @@ import jax
 import numpy as np
 import pytest
 
-from psbmpc_jax.cli import main
+from psbmpc_jax.apps.cli import main
 from psbmpc_jax.scenario import load_scenario, scenario_from_dict
 from psbmpc_jax.sim import simulate
 from psbmpc_jax.sim.metrics import maneuver_compliance

@@ -1,4 +1,5 @@
-"""scripts/nidelva_stop_analysis.py's term decomposition (why the grid search stops) on hand-made costs."""
+"""experiments/nidelva_refinement/stop_analysis.py: its term decomposition (why the grid search stops) on
+hand-made costs."""
 
 import importlib.util
 import pathlib
@@ -6,7 +7,7 @@ import pathlib
 import numpy as np
 import pytest
 
-SCRIPT = pathlib.Path(__file__).resolve().parents[1] / "scripts" / "nidelva_stop_analysis.py"
+SCRIPT = pathlib.Path(__file__).resolve().parents[1] / "experiments" / "nidelva_refinement" / "stop_analysis.py"
 
 
 @pytest.fixture(scope="module")

@@ -173,7 +173,7 @@ def test_seed_001_scenarios_are_the_generators_output_and_load():
     from psbmpc_jax.scenario import load_scenario
 
     repo = pathlib.Path(__file__).resolve().parents[1]
-    gen = subprocess.run([sys.executable, str(repo / "scripts" / "make_mahipala2023.py"), "--check"],
+    gen = subprocess.run([sys.executable, str(repo / "tools" / "make_mahipala2023.py"), "--check"],
                          capture_output=True, text=True)
     assert gen.returncode == 0, gen.stdout + gen.stderr
     counts = {}

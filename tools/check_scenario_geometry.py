@@ -15,8 +15,8 @@ its land checks to every file it loads).  This script prints, per file,
 
 Usage::
 
-    python scripts/check_scenario_geometry.py                      # the built-in nidelva and sakshaug files
-    python scripts/check_scenario_geometry.py path/to/scenario.yaml ...
+    python tools/check_scenario_geometry.py                      # the built-in nidelva and sakshaug files
+    python tools/check_scenario_geometry.py path/to/scenario.yaml ...
 
 Exit status 1 if the loader refuses any file.
 """

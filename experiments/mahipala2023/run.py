@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
-"""Seed 001's Simulation 2 (Mahipala & Johansen, MED 2023; SPEC_SEEDS §2.7) with the ``two_level`` method on the
-seven reconstructed Trondheim scenarios (``scripts/make_mahipala2023.py``), and the SPEC's acceptance checks:
+"""Simulation 2 of Mahipala & Johansen (2023) with the ``two_level`` method on the seven reconstructed Trondheim
+scenarios (``tools/make_mahipala2023.py``), and the checks of what the paper reports:
 
 * no collision, no grounding (the simulator's metrics);
 * the riparian corridor never violated: every true own-ship position, in the frame of the leg nearest to it,
@@ -11,18 +11,22 @@ seven reconstructed Trondheim scenarios (``scripts/make_mahipala2023.py``), and 
 * the deviation from scenario 1's path (mean distance of each run's track to run 0 of scenario 1) larger in 3,
   6 and 7 than in the others.
 
-    python scripts/mahipala2023_experiments.py --runs 10 --out results/methods/mahipala2023
+    python experiments/mahipala2023/run.py --runs 10 --out /tmp/mahipala2023
 """
 
 from __future__ import annotations
 
 import argparse
+import pathlib
 import sys
 import time
 
 import numpy as np
 
-from _experiments import finish, start
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))   # experiments/: comparison.py
+from comparison import finish, start  # noqa: E402
+
+STUDY = pathlib.Path(__file__).resolve().parent
 
 CASES = ("1_reference", "2_head_on", "3_crossing", "4_head_on_crossing", "5_overtaking", "6_overtaking_crossing",
          "7_combined")
@@ -117,7 +121,9 @@ def markdown(doc) -> str:
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--runs", type=int, default=10)
-    p.add_argument("--out", default=None)
+    p.add_argument("--out", default=None,
+                   help="output folder (default: a new results_<UTC stamp> folder next to this script)")
+    p.add_argument("--force", action="store_true", help="write into an --out folder that already holds results")
     p.add_argument("--scenarios", default=",".join(CASES))
     p.add_argument("--quiet", action="store_true")
     args = p.parse_args(argv)
@@ -130,7 +136,7 @@ def main(argv=None) -> int:
     from psbmpc_jax.sim.colav_two_level import TwoLevelGroup
     from psbmpc_jax.sim.output import write_outputs
 
-    out, doc = start(args.out, "mahipala2023", runs=args.runs, method="two_level")
+    out, doc = start(args.out, STUDY, force=args.force, runs=args.runs, method="two_level")
     ref_xy = None
     for name in names:
         sc = load_scenario(f"mahipala2023_{name}")

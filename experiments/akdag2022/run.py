@@ -1,9 +1,9 @@
 #!/usr/bin/env python3
-"""Seed 002's experiments (Akdağ, Fossen & Johansen 2022, Figs. 4-7; SPEC_SEEDS §3.7), reconstructed: each scenario
-with the two variants the paper compares, Informed SB-MPC on the own-ship, 3-DOF PSV motion, the same seeds for
-both variants (run r's tracking noise is ``default_rng([seed, r])``).
+"""The experiments of Akdağ, Fossen & Johansen (2022, Figs. 4-8), reconstructed (the paper gives no
+coordinates): each scenario with the two variants the paper compares, Informed SB-MPC on the own-ship, 3-DOF
+PSV motion, the same seeds for both variants (run r's tracking noise is ``default_rng([seed, r])``).
 
-    python scripts/akdag2022_experiments.py --runs 20 --out results/methods/akdag2022
+    python experiments/akdag2022/run.py --runs 20 --out /tmp/akdag2022
 
 =================================  =======================================  ===================================
 scenario                           variants                                 the paper's finding
@@ -29,10 +29,14 @@ import argparse
 import dataclasses
 import math
 import statistics
+import pathlib
 import sys
 import time
 
-from _experiments import finish, start
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))   # experiments/: comparison.py
+from comparison import finish, start  # noqa: E402
+
+STUDY = pathlib.Path(__file__).resolve().parent
 
 
 def _informed(sc, **kw):
@@ -142,7 +146,9 @@ def markdown(doc) -> str:
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--runs", type=int, default=20)
-    p.add_argument("--out", default=None)
+    p.add_argument("--out", default=None,
+                   help="output folder (default: a new results_<UTC stamp> folder next to this script)")
+    p.add_argument("--force", action="store_true", help="write into an --out folder that already holds results")
     p.add_argument("--scenarios", default=",".join(VARIANTS), help="comma-separated subset of " + ", ".join(VARIANTS))
     p.add_argument("--quiet", action="store_true")
     args = p.parse_args(argv)
@@ -155,7 +161,7 @@ def main(argv=None) -> int:
     from psbmpc_jax.sim import simulate
     from psbmpc_jax.sim.output import write_outputs
 
-    out, doc = start(args.out, "akdag2022", runs=args.runs)
+    out, doc = start(args.out, STUDY, force=args.force, runs=args.runs)
     for name in names:
         base = load_scenario(name)
         for variant, make in VARIANTS[name].items():

@@ -1,6 +1,6 @@
-"""Write scenarios/tengesdal2020_b.yaml (the package's built-in scenario folder): seed 004's congested-traffic
-scenario B, 13 targets from :func:`psbmpc_jax.traffic.random_targets` (seed 0, the first seed tried; the paper's
-own positions are not published).  ``python scripts/make_tengesdal2020_b.py [--check]``; ``--check`` exits 1 if
+"""Write scenarios/tengesdal2020_b.yaml (the package's built-in scenario folder): the congested-traffic
+scenario B of Tengesdal, Brekke & Johansen (2020), 13 targets from :func:`psbmpc_jax.traffic.random_targets` (seed 0, the first seed tried; the paper's
+own positions are not published).  ``python tools/make_tengesdal2020_b.py [--check]``; ``--check`` exits 1 if
 the committed file differs from what this script writes."""
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 N, SEED = 13, 0
 
 HEADER = """name: tengesdal2020_b
-description: "Seed 004 (Tengesdal, Brekke & Johansen 2020) scenario B, Fig. 5: congested traffic. The own-ship sails north from the origin at 9 m/s among 13 targets drawn by psbmpc_jax.traffic.random_targets(13, seed={seed}) (positions uniform in north 0..1000 m x east -400..400 m, headings uniform, speeds 2-9 m/s, starts >= 80 m = 2 d_safe apart; the paper's positions are not published). Targets keep course and speed (straight lines; the paper's truth adds CV process noise of at most 0.03 m/s^2, not simulated). Tracking as in scenario A. Run it with mpc.method sbmpc and psbmpc_2020. Regenerate: python scripts/make_tengesdal2020_b.py"
+description: "Tengesdal, Brekke & Johansen (2020) scenario B, Fig. 5: congested traffic. The own-ship sails north from the origin at 9 m/s among 13 targets drawn by psbmpc_jax.traffic.random_targets(13, seed={seed}) (positions uniform in north 0..1000 m x east -400..400 m, headings uniform, speeds 2-9 m/s, starts >= 80 m = 2 d_safe apart; the paper's positions are not published). Targets keep course and speed (straight lines; the paper's truth adds CV process noise of at most 0.03 m/s^2, not simulated). Tracking as in scenario A. Run it with mpc.method sbmpc and psbmpc_2020. Regenerate: python tools/make_tengesdal2020_b.py"
 simulation:
   dt_s: 0.1                  # the paper's Euler step
   duration_s: 150

@@ -1,31 +1,35 @@
 #!/usr/bin/env python3
-"""Run one scenario with several own-ship methods on the same seeds and compare them (issue 12's experiment).
+"""Run one scenario with several own-ship methods on the same seeds and compare them.
 
-    python scripts/compare_methods.py smooth_000_reconstruction --methods sbmpc_init,smooth_sbmpc --runs 20
-    python scripts/compare_methods.py nidelva --methods psbmpc,psbmpc_refine --runs 20
+    python experiments/compare_methods.py smooth_000_reconstruction --methods sbmpc_init,smooth_sbmpc --runs 20 \\
+        --out /tmp/smooth_reconstruction
+    python experiments/compare_methods.py nidelva --methods psbmpc,psbmpc_refine --runs 20 --out /tmp/nidelva
+
+Shared by the studies ``nidelva_refinement/`` and ``smooth_sbmpc/`` (their READMEs give the exact commands).
 
 Every method sees the same traffic, the same measurement noise (run r draws from ``default_rng([seed, r])``)
 and the same targets' controllers; only the own-ship's ``mpc.method`` changes.  Writes, under ``--out``
-(default ``benchmarks/results/methods_<scenario>_<UTC stamp>/``):
+(required; a folder that already holds files is refused unless ``--force``):
 
 * ``<method>/``: the simulator's usual output (``metrics.json``, ``summary.md``, figures of run 0);
-* ``comparison.json``: per method the safety and smoothness figures of SPEC_SEEDS §1.9 (collisions,
+* ``comparison.json``: per method the safety and smoothness figures (collisions,
   groundings, shore clearance, mean |course rate|, path length, voyage time, course and speed ranges, the longest
   stop) aggregated over the runs, the wall time, and the provenance (commit, versions, device);
-* ``course_speed_compare.png``: course and speed over time of run 0 for every method (paper 000, Fig. 16).
+* ``course_speed_compare.png``: course and speed over time of run 0 for every method (as Fig. 16 of the
+  Smooth-SBMPC paper, Mahipala & Johansen 2024).
 """
 
 from __future__ import annotations
 
 import argparse
-import datetime as dt
 import json
 import pathlib
 import platform
 import sys
 import time
 
-REPO = pathlib.Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[0]))   # experiments/: comparison.py
+from comparison import output_folder, utc_stamp  # noqa: E402
 
 
 def _stat(summary: dict, key: str, which: str = "mean"):
@@ -85,7 +89,8 @@ def main(argv=None) -> int:
                    help="comma-separated mpc.method values; the first is the baseline of the ratios")
     p.add_argument("--runs", type=int, default=None, help="Monte Carlo runs (default: the scenario's)")
     p.add_argument("--seed", type=int, default=None, help="base seed (default: the scenario's)")
-    p.add_argument("--out", default=None, help="output folder")
+    p.add_argument("--out", required=True, help="output folder (new, or empty)")
+    p.add_argument("--force", action="store_true", help="write into an --out folder that already holds results")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     args = p.parse_args(argv)
 
@@ -97,9 +102,8 @@ def main(argv=None) -> int:
         p.error(f"--methods: distinct values from {', '.join(METHODS)} expected, got {args.methods!r}")
     scenarios = {m: load_scenario(args.scenario, method=m) for m in methods}     # every file error before work
     name = scenarios[methods[0]].name
-    stamp = dt.datetime.now(dt.timezone.utc).strftime("%Y%m%dT%H%M%SZ")
-    out = pathlib.Path(args.out or REPO / "benchmarks" / "results" / f"methods_{name}_{stamp}")
-    out.mkdir(parents=True, exist_ok=True)
+    stamp = utc_stamp()
+    out = output_folder(args.out, args.out, force=args.force)
 
     import jax
     import matplotlib

@@ -11,8 +11,8 @@ import sys
 import tempfile
 import time
 
+from ..cache import enable_compilation_cache
 from .argtypes import nonneg_int, odd_int, positive_int, runs_int, seed_int
-from .cache import enable_compilation_cache
 
 #: ``psbmpc-jax run --method`` choices (the same as psbmpc_jax.scenario.METHODS; kept here so that building the
 #: parser imports nothing heavy).
@@ -90,7 +90,7 @@ def output_file_problem(path, option: str) -> str | None:
 
 # ------------------------------------------------------------------------------------------------ parser
 def build_parser() -> argparse.ArgumentParser:
-    from . import __version__
+    from .. import __version__
 
     parser = argparse.ArgumentParser(prog="psbmpc-jax", description=DESCRIPTION,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -122,7 +122,7 @@ def build_parser() -> argparse.ArgumentParser:
                                         "and PNG box plots.")
     add_report_arguments(report)
     parser._report_parser = report
-    from .evaltool.cli import add_evaluate_arguments
+    from ..evaltool.cli import add_evaluate_arguments
 
     ev = sub.add_parser("evaluate", help="COLREGS safety/compliance scores of saved trajectories (EvalTool)",
                         description="Score recorded trajectories with the COLREGS evaluation of Hagen et al. 2023 "
@@ -148,7 +148,7 @@ def add_example_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _plot_runs(text: str):
-    from .sim.plots import parse_runs
+    from ..sim.plots import parse_runs
 
     try:
         return parse_runs(text)      # None = all (resolved once the number of runs is known)
@@ -193,8 +193,8 @@ def run_example(args) -> int:
     if args.dtype == "float64":
         jax.config.update("jax_enable_x64", True)
     enable_compilation_cache()
-    from . import Planner, PlannerConfig, paper_behaviours
-    from .examples import paper_head_on
+    from .. import Planner, PlannerConfig, paper_behaviours
+    from ..examples import paper_head_on
 
     situation = paper_head_on(n_ps=args.n_ps, n_obstacles=args.obstacles)
     planner = Planner(PlannerConfig(estimator=args.estimator, dtype=args.dtype),
@@ -235,7 +235,7 @@ def scenario_listing() -> list[tuple[str, str, str]]:
     """(name, one-line description, file path) of every built-in scenario."""
     import yaml
 
-    from .scenario import SCENARIO_DIR, builtin_scenarios
+    from ..scenario import SCENARIO_DIR, builtin_scenarios
 
     rows = []
     for name in builtin_scenarios():
@@ -298,7 +298,7 @@ def _verdict(s: dict) -> str:
 def run_scenarios(args, parser) -> int:
     import fnmatch
 
-    from .scenario import builtin_scenarios, load_scenario
+    from ..scenario import builtin_scenarios, load_scenario
 
     names = builtin_scenarios()
     if args.list:
@@ -348,8 +348,8 @@ def run_scenarios(args, parser) -> int:
     import jax
 
     enable_compilation_cache()
-    from .sim import simulate
-    from .sim.output import write_index, write_outputs
+    from ..sim import simulate
+    from ..sim.output import write_index, write_outputs
 
     failures, total_runs, t_all = [], 0, time.perf_counter()
     for scenario in scenarios:
@@ -401,7 +401,8 @@ def _main(argv) -> int:
     if args.command == "example":
         return run_example(args)
     if args.command == "bench":
-        from .bench import build_plan, default_out, run_bench, select_devices
+        from .bench import build_plan, run_bench
+        from .bench_timing import default_out, select_devices
 
         try:   # flag combinations argparse cannot check: a usage error naming the flag
             build_plan(args)
@@ -416,7 +417,7 @@ def _main(argv) -> int:
     if args.command == "run":
         return run_scenarios(args, parser._run_parser)
     if args.command == "evaluate":
-        from .evaltool.cli import run_evaluate
+        from ..evaltool.cli import run_evaluate
 
         return run_evaluate(args, parser._evaluate_parser)
     if args.command == "report":

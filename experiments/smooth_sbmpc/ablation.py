@@ -1,26 +1,29 @@
 #!/usr/bin/env python3
-"""Why Smooth-SBMPC does not lower the course rate in the reconstructed seed-000 scene: variants of the DOCP
-on the same seeds, and where the applied course-offset changes come from (issue 12).
+"""Why Smooth-SBMPC (Mahipala & Johansen 2024) does not lower the course rate in the reconstructed scene of its
+paper (``smooth_000_reconstruction``): variants of the DOCP on the same seeds, and where the applied
+course-offset changes come from.
 
-    python scripts/smooth_000_ablation.py --runs 5 --out results/methods/smooth_000_ablation
+    python experiments/smooth_sbmpc/ablation.py --runs 5 --out /tmp/smooth_ablation
 
 Variants (each the scenario's Smooth-SBMPC with one change; ``sbmpc_init`` is the init stage alone):
 
-* ``sbmpc_init``: the baseline (the paper's Simulation 01 in our reading, C-000-14);
+* ``sbmpc_init``: the baseline (the paper's Simulation 01 in our reading, docs/smooth_sbmpc.md);
 * ``full``: the file as it is (terminal equality x, y, χ, U to Ψ_{N_mpc}, 4 starts);
 * ``full_previous``: + the previous update's plan as start 1 (``mpc.smooth.previous_start``);
 * ``position``: terminal equality on x, y only;  ``soft``: a quadratic terminal penalty instead;
 * ``soft_previous``: both;
 * ``full_gamma_x10``: Γ's course- and speed-change weights Δ_χ, Δ_U ×10 (both stages: a sensitivity check of
-  the proposed weights, SPEC_SEEDS §1.8 gives none; not a proposed setting);
+  the proposed weights, the paper gives none; not a proposed setting);
 * ``sbmpc_init_gamma_x10``: the init stage alone with the same weights (the fair baseline of the line above).
 
 Per variant: collisions, groundings, shore clearance, mean |course rate|, path length (as
-``scripts/compare_methods.py``), and the mechanism: the total variation of the applied course offset, the
+``experiments/compare_methods.py``), and the mechanism: the total variation of the applied course offset, the
 jump of the terminal target Ψ_{N_mpc} between consecutive updates (update m's Ψ at t_m + T_mpc against update
 m + 1's prediction of the same instant) and how much of the applied-offset variation falls in updates whose
 terminal target jumped by more than 0.5 m.  Writes ``ablation.json`` (with commit, versions, device) under
-``--out``; variants already in that file and not run again are kept (each row records its commit).
+``--out`` (default: a new ``results_<UTC stamp>/`` folder next to this script).  A folder that already holds
+files is refused unless ``--force``; with ``--force`` the variants already in its ``ablation.json`` and not run
+again are kept (each row records its commit).
 """
 
 from __future__ import annotations
@@ -36,7 +39,10 @@ import time
 
 import numpy as np
 
-REPO = pathlib.Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))   # experiments/: comparison.py
+from comparison import output_folder, utc_stamp  # noqa: E402
+
+STUDY = pathlib.Path(__file__).resolve().parent
 SCENARIO = "smooth_000_reconstruction"
 VARIANTS = {
     "sbmpc_init": ("sbmpc_init", {}, 1.0),
@@ -72,7 +78,10 @@ def main(argv=None) -> int:
     p.add_argument("--runs", type=int, default=5)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--variants", default=",".join(VARIANTS), help="comma-separated, from " + ", ".join(VARIANTS))
-    p.add_argument("--out", default=str(REPO / "results" / "methods" / "smooth_000_ablation"))
+    p.add_argument("--out", default=None, help="output folder (default: a new results_<UTC stamp> folder next "
+                   "to this script)")
+    p.add_argument("--force", action="store_true", help="write into an --out folder that already holds results "
+                   "(its ablation.json's other variants are kept)")
     args = p.parse_args(argv)
     names = [v.strip() for v in args.variants.split(",")]
     bad = [v for v in names if v not in VARIANTS]
@@ -104,8 +113,7 @@ def main(argv=None) -> int:
     colav.smooth_planner_class = lambda: Recording
     started_at = commit()                  # the code this process imported (later edits do not change it)
 
-    out = pathlib.Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    out = output_folder(args.out, STUDY / f"results_{utc_stamp()}", force=args.force)
     old = out / "ablation.json"
     rows = {k: v for k, v in json.loads(old.read_text())["variants"].items() if k not in names} if old.exists() else {}
     for name in names:
@@ -142,7 +150,8 @@ def main(argv=None) -> int:
                "variants": {k: rows[k] for k in VARIANTS if k in rows},
                "commit": started_at, "device": str(jax.devices()[0]), "platform": platform.platform(),
                "versions": {"python": sys.version.split()[0], "jax": jax.__version__, "numpy": np.__version__},
-               "command": "python scripts/smooth_000_ablation.py " + " ".join(argv if argv is not None else sys.argv[1:]),
+               "command": "python experiments/smooth_sbmpc/ablation.py "
+                          + " ".join(argv if argv is not None else sys.argv[1:]),
                "utc": dt.datetime.now(dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")}
         (out / "ablation.json").write_text(json.dumps(doc, indent=1) + "\n")
     return 0

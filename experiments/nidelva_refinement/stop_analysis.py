@@ -1,11 +1,11 @@
 #!/usr/bin/env python3
 """Where PSB-MPC + refinement's stops on Nidelva come from: at every MPC update of the own-ship, the grid
 search's choice (is its first maneuver a stop, speed factor < 0.05?) against the refined control applied
-(speed factor < 0.05?), per run, with the runs' longest stops (issue 12).
+(speed factor < 0.05?), per run, with the runs' longest stops.
 
-    python scripts/nidelva_stop_analysis.py --runs 15 --out results/methods/nidelva/stop_analysis.json
+    python experiments/nidelva_refinement/stop_analysis.py --runs 15 --out /tmp/stop_analysis.json
 
-Same scenario, seeds and settings as ``scripts/compare_methods.py nidelva --methods psbmpc,psbmpc_refine``
+Same scenario, seeds and settings as ``experiments/compare_methods.py nidelva --methods psbmpc,psbmpc_refine``
 (runs 0 … R − 1 of seed 1 are the same runs there).  A stopped update: own-ship speed <= 0.2 m/s at the update
 (the metrics' stop threshold).  ``--start-margin`` overrides the solver's ``start_margin`` (how far into the box
 the starts are moved; a start on the speed bound 0, the stop behaviour, sits where the sin box map's slope
@@ -23,7 +23,10 @@ import sys
 
 import numpy as np
 
-REPO = pathlib.Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))   # experiments/: comparison.py
+from comparison import output_file, utc_stamp  # noqa: E402
+
+STUDY = pathlib.Path(__file__).resolve().parent
 STOP_FACTOR = 0.05
 STOP_SPEED = 0.2
 
@@ -36,10 +39,13 @@ def first_maneuver_stops(behaviours) -> np.ndarray:
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--runs", type=int, default=15)
-    p.add_argument("--out", default=str(REPO / "results" / "methods" / "nidelva" / "stop_analysis.json"))
+    p.add_argument("--out", default=None, help="output JSON file (default: a new results/stop_analysis_<UTC "
+                   "stamp>.json next to this script); an existing file is refused unless --force")
+    p.add_argument("--force", action="store_true", help="write over an existing --out file")
     p.add_argument("--start-margin", type=float, default=None,
                    help="the refinement solver's start_margin (default: the library's, 1e-3)")
     args = p.parse_args(argv)
+    out = output_file(args.out, STUDY / "results" / f"stop_analysis_{utc_stamp()}.json", force=args.force)
 
     import jax
 
@@ -99,10 +105,9 @@ def main(argv=None) -> int:
            "total": total, "why_the_grid_stops": why, "commit": started_at, "device": str(jax.devices()[0]),
            "platform": platform.platform(),
            "versions": {"python": sys.version.split()[0], "jax": jax.__version__, "numpy": np.__version__},
-           "command": "python scripts/nidelva_stop_analysis.py " + " ".join(argv if argv is not None else sys.argv[1:]),
+           "command": "python experiments/nidelva_refinement/stop_analysis.py "
+                      + " ".join(argv if argv is not None else sys.argv[1:]),
            "utc": dt.datetime.now(dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")}
-    out = pathlib.Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(doc, indent=1) + "\n")
     for x in runs:
         print(json.dumps(x))

@@ -1,9 +1,9 @@
 #!/usr/bin/env python3
-"""Seed 004's closed-loop experiments (Tengesdal, Brekke & Johansen 2020, §7): scenario A (head-on, noisy
+"""The closed-loop experiments of Tengesdal, Brekke & Johansen (2020, Sec. 7): scenario A (head-on, noisy
 tracking) and scenario B (13 random obstacles), each with the original SB-MPC (``sbmpc``) and the paper's PSB-MPC
 (``psbmpc_2020``) on the same seeds (run r's measurement noise is ``default_rng([seed, r])`` for both methods).
 
-    python scripts/tengesdal2020_experiments.py --runs 20 --out results/methods/tengesdal2020
+    python experiments/tengesdal2020/run.py --runs 20 --out /tmp/tengesdal2020
 
 Per (scenario, method) it writes the simulator's usual output under ``<out>/<scenario>/<method>/`` and, in
 ``<out>/comparison.json`` and ``<out>/comparison.md``, per run and aggregated:
@@ -15,7 +15,7 @@ Per (scenario, method) it writes the simulator's usual output under ``<out>/<sce
 * the mean path deviation [m] (cross-track distance to the planned route), the paper's "on par" criterion;
 * the mean solve time.
 
-The paper's findings (SPEC_SEEDS §4.7): in A the SB-MPC dips slightly below d_safe while the PSB-MPC keeps clear
+The paper's findings: in A the SB-MPC dips slightly below d_safe while the PSB-MPC keeps clear
 with a larger margin; in B the PSB-MPC turns to starboard and the SB-MPC to port.
 """
 
@@ -25,10 +25,14 @@ import argparse
 import dataclasses
 import math
 import statistics
+import pathlib
 import sys
 import time
 
-from _experiments import finish, start
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))   # experiments/: comparison.py
+from comparison import finish, start  # noqa: E402
+
+STUDY = pathlib.Path(__file__).resolve().parent
 
 SCENARIOS = ("tengesdal2020_a", "tengesdal2020_b")
 METHODS = ("sbmpc", "psbmpc_2020")
@@ -98,7 +102,9 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--runs", type=int, default=20, help="Monte Carlo runs per (scenario, method) (default 20)")
     p.add_argument("--seed", type=int, default=None, help="base seed (default: the scenario's)")
-    p.add_argument("--out", default=None, help="output folder (default benchmarks/results/tengesdal2020_<stamp>)")
+    p.add_argument("--out", default=None,
+                   help="output folder (default: a new results_<UTC stamp> folder next to this script)")
+    p.add_argument("--force", action="store_true", help="write into an --out folder that already holds results")
     p.add_argument("--scenarios", default=",".join(SCENARIOS), help="comma-separated scenario names or paths")
     p.add_argument("--alteration-deg", type=float, default=1.0, help="course offset counted as an alteration")
     p.add_argument("--sbmpc", action="append", default=[], metavar="FIELD=VALUE",
@@ -130,7 +136,7 @@ def main(argv=None) -> int:
                 sc.mpc, sbmpc=dataclasses.replace(sc.mpc.sbmpc, **overrides))) for k, sc in loaded.items()}
         except (TypeError, ValueError) as exc:
             p.error(f"--sbmpc: {exc}")
-    out, doc = start(args.out, "tengesdal2020", runs=args.runs, alteration_deg=args.alteration_deg,
+    out, doc = start(args.out, STUDY, force=args.force, runs=args.runs, alteration_deg=args.alteration_deg,
                      sbmpc_overrides=overrides)
     for (name, method), sc in loaded.items():
         t0 = time.perf_counter()

@@ -1,5 +1,5 @@
-"""Write the seven scenarios of seed 001's Simulation 2 (Mahipala & Johansen, MED 2023, Section VI; SPEC_SEEDS
-§2.7) on the package's Trondheim chart: ``scenarios/mahipala2023_<k>_<name>.yaml``.
+"""Write the seven scenarios of Simulation 2 of Mahipala & Johansen (2023, Section VI) on the package's Trondheim
+chart: ``scenarios/mahipala2023_<k>_<name>.yaml``.
 
 The paper gives no coordinates, speeds or durations; these are RECONSTRUCTED: the own-ship (5 m, 2 m/s) runs
 the river Nidelva upstream along the ``nidelva`` scenario's route, two artificial static obstacles (circles,
@@ -15,7 +15,7 @@ paper's encounters:
 6. overtaking + crossing: 5 with CR2 crossing from starboard at s ~ 480 m (it waits until t = 176 s);
 7. all combined: HO, CR and OT of 2, 3 and 5.
 
-``python scripts/make_mahipala2023.py [--check]`` (``--check`` exits 1 when a committed file differs).
+``python tools/make_mahipala2023.py [--check]`` (``--check`` exits 1 when a committed file differs).
 """
 
 from __future__ import annotations
@@ -115,11 +115,11 @@ def scenario(key: str, what: str, targets) -> dict:
     circles = [{"center_m": r1(along(s)[0]), "radius_m": 5} for s in CIRCLES]
     return {
         "name": f"mahipala2023_{key}",
-        "description": (f"RECONSTRUCTED seed-001 (Mahipala & Johansen, MED 2023) Simulation 2, scenario {key[0]}: "
+        "description": (f"RECONSTRUCTED (Mahipala & Johansen, MED 2023) Simulation 2, scenario {key[0]}: "
                         f"{what}. Own-ship 5 m at 2 m/s upstream in the river Nidelva (Trondheim chart, the nidelva "
                         f"route), two artificial static obstacles (r 5 m) on the route at s = 180 and 250 m; "
                         f"targets without collision avoidance. Geometry proposed here, not the paper's (it gives "
-                        f"none). Regenerate: python scripts/make_mahipala2023.py"),
+                        f"none). Regenerate: python tools/make_mahipala2023.py"),
         "simulation": {"dt_s": 1, "duration_s": 360},
         "monte_carlo": {"runs": 10, "seed": 0},
         "collision_distance_m": 5,
@@ -153,7 +153,8 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     bad = 0
     for key, what, targets in CASES:
-        text = ("# RECONSTRUCTED scenario of seed paper 001 (see scripts/make_mahipala2023.py); generated, do not edit.\n"
+        text = ("# RECONSTRUCTED scenario of Mahipala & Johansen 2023 (see tools/make_mahipala2023.py); generated, do not "
+                "edit.\n"
                 + yaml.safe_dump(scenario(key, what, targets), sort_keys=False, width=120))
         path = OUT / f"mahipala2023_{key}.yaml"
         if args.check:
