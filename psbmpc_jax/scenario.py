@@ -35,22 +35,34 @@ from .geo import LATLON_MAX_DISTANCE_M, check_latlon, latlon_to_ned
 from .evaltool.params import PRESETS as EVAL_PRESETS
 from .evaltool.params import EvalParams
 from .evaltool.params import scaled_params
-from .methods import SBMPC_PRESETS, SbmpcSettings
+from .methods.registry import REGISTRY, get_method
+from .methods.sbmpc_family import SBMPC_PRESETS, SbmpcSettings
 from .params import Params, PlannerConfig, validate_params
 from .situation import MAX_N_PS
 
-#: Controllers (``mpc.method`` for the own-ship, ``colav`` per ship): plain PSB-MPC, PSB-MPC grid search + gradient
-#: refinement, Smooth-SBMPC (seed 000) and its initialisation stage alone (the paper's "original SB-MPC", Sim 01),
-#: the original SB-MPC and the PSB-MPC of seed 004 (:mod:`psbmpc_jax.methods`); the closed-loop registry is
-#: :data:`psbmpc_jax.sim.methods.REGISTRY`.
-METHODS = ("psbmpc", "psbmpc_refine", "smooth_sbmpc", "sbmpc_init", "sbmpc", "psbmpc_2020", "informed_sbmpc",
-           "two_level")
-#: Values of a ship's ``colav``: no collision avoidance, or a method.
+#: The built-in controllers (``mpc.method`` for the own-ship, ``colav`` per ship), as registered in
+#: :data:`psbmpc_jax.methods.REGISTRY` (:mod:`psbmpc_jax.methods.builtin`).  A scenario may also name a method
+#: registered later, one published through the ``psbmpc_jax.methods`` entry point group, or an import path
+#: ``package.module:Name`` (:func:`psbmpc_jax.methods.get_method`).
+METHODS = tuple(REGISTRY)
+#: Values of a ship's ``colav`` among the built-in ones: no collision avoidance, or a method.
 COLAV_MODES = ("none",) + METHODS
 #: The methods of seed 000 (their own model and tuning; the PSB-MPC preset only supplies defaults).
 SMOOTH_METHODS = ("smooth_sbmpc", "sbmpc_init")
-#: Methods only the own-ship may run (the Smooth-SBMPC planner plans ship 0).
-OWN_SHIP_ONLY_METHODS = SMOOTH_METHODS + ("two_level",)
+#: Built-in methods only the own-ship may run (the Smooth-SBMPC and two-level planners plan ship 0).
+OWN_SHIP_ONLY_METHODS = tuple(n for n, m in REGISTRY.items() if m.own_ship_only)
+
+
+def _method_name(value, where: str, *, none_ok: bool = False) -> str:
+    """``value`` if it names a method (:func:`psbmpc_jax.methods.get_method`; ``"none"`` too when ``none_ok``),
+    else ValueError naming ``where`` and what is allowed."""
+    if none_ok and value == "none":
+        return value
+    try:
+        get_method(value, where, none_ok=none_ok)
+    except (ImportError, TypeError) as exc:
+        raise ValueError(str(exc)) from exc
+    return value
 #: The preset a smooth-method file without ``mpc.preset`` gets its defaults from (5 m river vessels).
 SMOOTH_DEFAULT_PRESET = "nidelva"
 
@@ -632,8 +644,7 @@ def _mpc(d, dt: float) -> MPCSpec:
     d = _mapping(d, "mpc")
     _check_keys(d, _MPC_KEYS, "mpc", required=("update_period_s",))
     method = d.get("method", "psbmpc")
-    if not isinstance(method, str) or method not in METHODS:
-        raise ValueError(f"mpc.method must be one of {', '.join(METHODS)}, got {show(method)}")
+    _method_name(method, "mpc.method")
     if "preset" not in d and method not in SMOOTH_METHODS:
         raise ValueError(f"mpc: missing required key 'preset' (required for mpc.method {method}; optional only "
                          f"for {' / '.join(SMOOTH_METHODS)}, which then take their defaults from "
@@ -889,10 +900,10 @@ def _evaluation(d) -> EvalParams:
 
 
 def _colav(value, own: bool, method: str, where: str) -> str:
-    """A ship's method: ``"none"`` or one of :data:`METHODS`.  The own-ship's is ``mpc.method`` (``psbmpc``, the
-    historic "on", or the same name as ``mpc.method``); a target's is the name it gives (not a smooth method)."""
-    if not isinstance(value, str) or value not in COLAV_MODES:
-        raise ValueError(f"{where}.colav must be one of {COLAV_MODES}, got {show(value)}")
+    """A ship's method: ``"none"`` or a method name (:func:`_method_name`).  The own-ship's is ``mpc.method``
+    (``psbmpc``, the historic "on", or the same name as ``mpc.method``); a target's is the name it gives (not a
+    method that plans the own-ship only)."""
+    _method_name(value, f"{where}.colav", none_ok=True)
     if value == "none":
         return value
     if own:
@@ -900,9 +911,10 @@ def _colav(value, own: bool, method: str, where: str) -> str:
             raise ValueError(f"{where}.colav: the own-ship runs mpc.method ({method}), got colav {value!r}; set "
                              f"mpc.method: {value} (or colav: psbmpc, which means 'on, with mpc.method')")
         return method
-    if value in OWN_SHIP_ONLY_METHODS:
+    if get_method(value).own_ship_only:
+        targets_ok = [n for n, m in REGISTRY.items() if not m.own_ship_only]
         raise ValueError(f"{where}.colav: {value} plans the own-ship only; a target may run "
-                         f"{', '.join(m for m in METHODS if m not in OWN_SHIP_ONLY_METHODS)} or none")
+                         f"{', '.join(targets_ok)}, another method that plans targets, or none")
     return value
 
 
@@ -1406,9 +1418,7 @@ def scenario_from_dict(data: dict, base_dir=None, source: str | None = None, *, 
     data = copy.deepcopy(_mapping(data, "the scenario"))
     _check_keys(data, _TOP_KEYS, "the scenario (top level)", required=_TOP_REQUIRED)
     if method is not None:
-        if not isinstance(method, str) or method not in METHODS:
-            raise ValueError(f"method (the override of mpc.method) must be one of {', '.join(METHODS)}, got "
-                             f"{show(method)}")
+        _method_name(method, "method (the override of mpc.method)")
         data["mpc"] = {**_mapping(data["mpc"], "mpc"), "method": method}
     name = _string(data["name"], "name")
     description = data.get("description", "")

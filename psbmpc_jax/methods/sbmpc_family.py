@@ -27,7 +27,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
-from . import checks
+from .. import checks
 
 # the cost terms are imported where they are built: loading a scenario (which reads SbmpcSettings) must not
 # import JAX (tests/test_scenario_checks.py)
@@ -128,7 +128,7 @@ def sbmpc_settings(preset: str = "tengesdal2020", **overrides) -> SbmpcSettings:
 def manoeuvring_term(s: SbmpcSettings):
     """Γ of seed 004 (eqs. 10-13): linear speed term, |Δu|, the Δχ side from the sign of the new offset
     (a :class:`~psbmpc_jax.costs.manoeuvring.SmoothManoeuvringTerm`)."""
-    from .costs.manoeuvring import SmoothManoeuvringTerm
+    from ..costs.manoeuvring import SmoothManoeuvringTerm
 
     return SmoothManoeuvringTerm(aggregation="max", form="johansen", side="offset", **s.manoeuvring())
 
@@ -137,7 +137,7 @@ def sbmpc_terms(s: SbmpcSettings = SbmpcSettings(), *, with_grounding: bool | No
     """The original SB-MPC: the joint max over (obstacle, k ≥ 1) of K_coll‖Δv‖²R + κμ (+ λT when
     ``s.lambda_T > 0``) (crisp R, Boolean μ), plus Γ, plus the grounding term when ``with_grounding`` (default
     ``s.grounding``)."""
-    from .costs.sbmpc import SbmpcHazardTerm
+    from ..costs.sbmpc import SbmpcHazardTerm
 
     hazard = SbmpcHazardTerm(d_safe=s.d_safe, K_coll=s.K_coll, p=s.p, q=s.q, kappa=s.kappa, d_cl=s.d_cl,
                              aggregation="max", risk="crisp", colregs="boolean", transitional=s.lambda_T > 0,
@@ -148,7 +148,7 @@ def sbmpc_terms(s: SbmpcSettings = SbmpcSettings(), *, with_grounding: bool | No
 def psbmpc2020_terms(s: SbmpcSettings = SbmpcSettings(), *, with_grounding: bool | None = None) -> tuple:
     """The PSB-MPC of seed 004 (eq. 20): the MCS+KF collision term with its summed COLREGS, plus Γ, plus the
     grounding term when ``with_grounding`` (default ``s.grounding``)."""
-    from .costs.mcskf import Psbmpc2020Term
+    from ..costs.mcskf import Psbmpc2020Term
 
     risk = Psbmpc2020Term(d_safe=s.d_safe, K_coll=s.K_coll, kappa=s.kappa, d_cl=s.d_cl, T_c=s.T_c, q_P=s.q_P,
                           r_P=s.r_P, V0=s.V0, n_mc=s.n_mc, seed=s.seed)
@@ -165,8 +165,8 @@ def informed_terms(informed=None) -> tuple:
     bearing-shaped d_safe, Woerner μ, Rule-18 ζ with per-target P_default / P_R18, grounding 𝓖) and Γ of eq. (7)
     (side from the new offset).  ``informed``: a :class:`psbmpc_jax.scenario.InformedSpec` (its ``classify``,
     ``circular`` and ``term`` overrides) or None for the defaults."""
-    from .costs.informed import InformedSbmpcTerm
-    from .costs.manoeuvring import SmoothManoeuvringTerm
+    from ..costs.informed import InformedSbmpcTerm
+    from ..costs.manoeuvring import SmoothManoeuvringTerm
 
     kw = {} if informed is None else dict(informed.term, classify=informed.classify, circular=informed.circular)
     return (InformedSbmpcTerm(**kw),
@@ -176,7 +176,7 @@ def informed_terms(informed=None) -> tuple:
 def _with_grounding(terms: tuple, on: bool) -> tuple:
     if not on:
         return terms
-    from .costs.grounding_term import GroundingTerm
+    from ..costs.grounding_term import GroundingTerm
 
     return terms + (GroundingTerm(),)
 
