@@ -14,7 +14,7 @@ import JAX.  The heavy parts of a method are imported inside its :meth:`Method.b
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar, Protocol, runtime_checkable
 
 import numpy as np

@@ -5,7 +5,6 @@ the figures of :mod:`psbmpc_jax.sim.plots` and, on request, every run's trajecto
 from __future__ import annotations
 
 import csv
-import dataclasses
 import datetime as _dt
 import json
 import math

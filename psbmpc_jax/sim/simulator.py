@@ -23,13 +23,11 @@ replays identically whatever the number of runs simulated with it.
 from __future__ import annotations
 
 import dataclasses
-import functools
 import sys
 import time
 from dataclasses import dataclass, field
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 
 from ..checks import integer, multiple_of
