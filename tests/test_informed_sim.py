@@ -14,7 +14,8 @@ import pytest
 from psbmpc_jax.evaluate import evaluate
 from psbmpc_jax.packing import pack
 from psbmpc_jax.params import Params, PlannerConfig
-from psbmpc_jax.scenario import (INFORMED_TERM_FIELDS, VESSEL_MODELS, load_scenario, scenario_from_dict)
+from psbmpc_jax.methods.informed_settings import INFORMED_TERM_FIELDS
+from psbmpc_jax.scenario import VESSEL_MODELS, load_scenario, scenario_from_dict
 from psbmpc_jax.sim import simulate, vessel3dof
 from psbmpc_jax.methods.base import route_distance
 from psbmpc_jax.sim.simulator import _ClosedLoop

@@ -25,8 +25,9 @@ import pytest
 import yaml
 
 from psbmpc_jax.cli import main
-from psbmpc_jax.scenario import (METHODS, FisSpec, RefineSpec, SmoothSpec, SolverSpec, load_scenario,
-                                 scenario_from_dict)
+from psbmpc_jax.methods.refine_settings import RefineSpec
+from psbmpc_jax.methods.smooth_settings import FisSpec, SmoothSpec, SolverSpec
+from psbmpc_jax.scenario import METHODS, load_scenario, scenario_from_dict
 from psbmpc_jax.scenario_checks import ScenarioWarning
 from psbmpc_jax.methods import grid, smooth
 from psbmpc_jax.methods.base import tracked_targets

@@ -13,7 +13,8 @@ import pytest
 
 from psbmpc_jax.methods.sbmpc_family import SbmpcSettings
 from psbmpc_jax.params import PlannerConfig
-from psbmpc_jax.scenario import TwoLevelSpec, scenario_from_dict
+from psbmpc_jax.methods.two_level_settings import TwoLevelSpec
+from psbmpc_jax.scenario import scenario_from_dict
 from psbmpc_jax.sim import simulate
 from psbmpc_jax.two_level.path_mpc import PathMpcSettings, rk4_step
 from psbmpc_jax.two_level.planner import TwoLevelPlanner, TwoLevelSettings

@@ -92,6 +92,26 @@ def test_the_python_api_registers_it_under_a_name_for_own_ship_and_targets(cpa):
         REGISTRY.pop("cpa", None)
 
 
+def test_its_own_section_of_the_file_is_parsed_by_its_module(cpa):
+    sc = load_scenario(SCENARIO)
+    assert sc.mpc.cpa == cpa.CpaSettings(d_safe_m=30.0, horizon_s=120.0)
+    d = _short()
+    d["mpc"]["cpa"] = {"d_safe_m": 55, "horizon_s": 90}
+    sc = scenario_from_dict(d)
+    assert cpa.CpaMethod().settings(sc) == cpa.CpaSettings(55.0, 90.0)
+    assert cpa.CpaMethod(d_safe_m=20.0).settings(sc) == cpa.CpaSettings(20.0, 90.0)     # code wins
+    res = simulate(sc, runs=1)
+    _offsets_are_the_controllers(res, cpa)
+    d["mpc"]["cpa"] = {"d_safe_m": -1}
+    with pytest.raises(ValueError, match=r"mpc.cpa.d_safe_m must be > 0, got -1"):
+        scenario_from_dict(d)
+    d["mpc"]["cpa"] = {"d_safe": 30}
+    with pytest.raises(ValueError, match=r"unknown key 'd_safe' in mpc.cpa \(did you mean 'd_safe_m'"):
+        scenario_from_dict(d)
+    with pytest.raises(ValueError, match=r"CpaSettings.horizon_s must be a number > 0, got 0"):
+        cpa.CpaMethod(horizon_s=0)
+
+
 def test_an_entry_point_publishes_it(cpa, monkeypatch):
     ep = importlib.metadata.EntryPoint(name="cpa_ep", value="cpa_controller:CpaMethod",
                                        group=registry.ENTRY_POINT_GROUP)

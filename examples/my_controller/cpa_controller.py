@@ -7,6 +7,9 @@ and keeps the first one whose straight-line closest point of approach (CPA) to e
 
 It uses only the public protocol of :mod:`psbmpc_jax.methods`:
 
+* :class:`CpaSettings` and :func:`parse_section` are its settings and the parser of its own section of a scenario
+  file, ``mpc.cpa`` (registered with :func:`psbmpc_jax.methods.registry.register_section` when this module is
+  imported);
 * :class:`CpaMethod` is the *method*: its name, and ``build`` which makes the controller for the ships that
   run it;
 * :class:`CpaController` is the *controller*: ``decide_ship(observation, run, ship)`` returns the offsets
@@ -17,10 +20,13 @@ It uses only the public protocol of :mod:`psbmpc_jax.methods`:
 from __future__ import annotations
 
 import math
+from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from psbmpc_jax.config import as_mapping, as_number, check_keys
 from psbmpc_jax.methods import Method, Observation, ShipController
+from psbmpc_jax.methods.registry import SECTIONS, register_section
 
 #: Candidate manoeuvres (speed factor, course offset [deg]), most preferred first.
 MANOEUVRES = ((1.0, 0.0), (1.0, 15.0), (1.0, 30.0), (1.0, 45.0), (1.0, 60.0), (0.5, 60.0), (0.0, 0.0))
@@ -70,26 +76,53 @@ class CpaController(ShipController):
         return factor, math.radians(offset_deg)
 
 
+@dataclass(frozen=True)
+class CpaSettings:
+    """The settings of :class:`CpaMethod`: the clearance to keep [m] and how far ahead to look [s]."""
+
+    d_safe_m: float = 30.0
+    horizon_s: float = 120.0
+
+    def __post_init__(self):
+        for name in ("d_safe_m", "horizon_s"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
+                raise ValueError(f"CpaSettings.{name} must be a number > 0, got {v!r}")
+
+
+def parse_section(d, context) -> CpaSettings:
+    """``mpc.cpa`` of a scenario file (``d_safe_m``, ``horizon_s``; both optional)."""
+    d = as_mapping(d, "mpc.cpa")
+    check_keys(d, ("d_safe_m", "horizon_s"), "mpc.cpa")
+    return CpaSettings(**{k: as_number(v, f"mpc.cpa.{k}", gt=0) for k, v in d.items()})
+
+
+if "cpa" not in SECTIONS:                      # once, however often the module is imported
+    register_section("cpa", parse_section, CpaSettings)
+
+
 class CpaMethod(Method):
     """The method: what scenario files name (``mpc.method: cpa_controller:CpaMethod`` or, once registered,
-    ``cpa``) and how its controller is built."""
+    ``cpa``) and how its controller is built.  Its settings are the file's ``mpc.cpa`` section, unless some are
+    given in code (``CpaMethod(d_safe_m=40)``), which then win."""
 
     name = "cpa"
     description = "turn to starboard until the straight-line CPA is clear (example)"
 
-    def __init__(self, d_safe_m: float = 30.0, horizon_s: float = 120.0):
-        if not d_safe_m > 0:
-            raise ValueError(f"d_safe_m must be > 0, got {d_safe_m!r}")
-        if not horizon_s > 0:
-            raise ValueError(f"horizon_s must be > 0, got {horizon_s!r}")
-        self.d_safe_m, self.horizon_s = float(d_safe_m), float(horizon_s)
+    def __init__(self, **settings):
+        self.given = asdict(CpaSettings(**settings)) if settings else {}      # validated now
+        self.given = {k: v for k, v in self.given.items() if k in settings}
+
+    def settings(self, scenario) -> CpaSettings:
+        return CpaSettings(**{**asdict(scenario.mpc.cpa), **self.given})
 
     def build(self, scenario, ships, context):
-        return CpaController(ships, d_safe_m=self.d_safe_m, horizon_s=self.horizon_s)
+        s = self.settings(scenario)
+        return CpaController(ships, d_safe_m=s.d_safe_m, horizon_s=s.horizon_s)
 
     def record(self, scenario) -> dict:
-        return {"d_safe_m": self.d_safe_m, "horizon_s": self.horizon_s,
-                "manoeuvres": [list(m) for m in MANOEUVRES]}
+        return {**asdict(self.settings(scenario)), "manoeuvres": [list(m) for m in MANOEUVRES]}
 
     def describe(self, scenario) -> str:
-        return f"d_safe {self.d_safe_m:g} m, horizon {self.horizon_s:g} s"
+        s = self.settings(scenario)
+        return f"d_safe {s.d_safe_m:g} m, horizon {s.horizon_s:g} s"

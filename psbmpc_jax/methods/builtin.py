@@ -26,7 +26,12 @@ import dataclasses
 from dataclasses import asdict
 
 from .base import BuildContext, Method
-from .registry import register
+from .informed_settings import InformedSpec, parse_informed
+from .refine_settings import RefineSpec, parse_refine
+from .registry import SectionContext, register, register_section
+from .sbmpc_family import SbmpcSettings, parse_sbmpc
+from .smooth_settings import SMOOTH_METHODS, FisSpec, SmoothSpec, SolverSpec, parse_fis, parse_smooth, parse_solver
+from .two_level_settings import TwoLevelSpec, parse_two_level
 
 
 def resolved(obj):
@@ -212,6 +217,33 @@ class TwoLevel(Method):
     def describe(self, scenario) -> str:
         return f"path MPC N_p {scenario.mpc.two_level.N_p}, SB-MPC {len(scenario.mpc.behaviours)} behaviours"
 
+
+def _smooth_section(d, ctx: SectionContext) -> SmoothSpec:
+    from ..checks import multiple_of
+
+    smooth = parse_smooth(d)
+    if ctx.method in SMOOTH_METHODS:
+        multiple_of(ctx.period, smooth.dt, "mpc.update_period_s",
+                    "mpc.smooth.dt_s" if "dt_s" in (ctx.mpc.get("smooth") or {}) else "mpc.smooth.dt_s (default)")
+    return smooth
+
+
+def _refine_section(d, ctx: SectionContext) -> RefineSpec:
+    """``mpc.refine``, with ``mpc.fis.e_cl_m`` / ``n_y`` when the file gives them (the refinement's FIS)."""
+    refine = parse_refine(d, ctx.config)
+    fis, given = ctx.parsed["fis"], ctx.mpc.get("fis") or {}
+    return dataclasses.replace(refine, fis_e_cl=fis.e_cl if "e_cl_m" in given else None,
+                               fis_n_y=fis.n_y if "n_y" in given else None)
+
+
+# the sections of mpc each built-in method reads (parsed in this order, whatever the method)
+register_section("smooth", _smooth_section, SmoothSpec)
+register_section("fis", lambda d, ctx: parse_fis(d), FisSpec)
+register_section("solver", lambda d, ctx: parse_solver(d), SolverSpec)
+register_section("refine", _refine_section, RefineSpec, after_config=True)
+register_section("sbmpc", lambda d, ctx: parse_sbmpc(d), SbmpcSettings, after_config=True)
+register_section("informed", lambda d, ctx: parse_informed(d), InformedSpec, after_config=True)
+register_section("two_level", lambda d, ctx: parse_two_level(d), TwoLevelSpec, after_config=True)
 
 PSBMPC = Psbmpc()
 for _method in (PSBMPC, Refined(PSBMPC, "psbmpc_refine", "PSB-MPC grid search + gradient refinement"), Sbmpc(),

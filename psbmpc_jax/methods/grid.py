@@ -186,7 +186,7 @@ class GridController:
         active = [self._active(obs, r, i) for r, i in jobs]
         if all(active):
             return self._solve(obs, jobs)
-        # resting planners apply (1, 0) and forget their last offsets (SPEC_SEEDS §3.4)
+        # resting planners apply (1, 0) and forget their last offsets (Informed SB-MPC's d_init rule)
         first = np.tile([1.0, 0.0], (len(jobs), 1))
         costs = np.full((len(jobs), len(COST_NAMES)), np.nan)
         walls = np.full(len(jobs), np.nan)             # no solve: not a solve time (metrics skip NaN)

@@ -20,6 +20,7 @@ import importlib
 import importlib.metadata
 import re
 from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
 
@@ -120,6 +121,47 @@ def _load(path: str, where: str):
     return obj
 
 
+@dataclass(frozen=True)
+class SectionContext:
+    """What a section parser gets besides its own mapping: the whole ``mpc`` mapping of the file, the own-ship's
+    method, the MPC update period [s], the PSB-MPC configuration (None for the sections parsed before it) and the
+    sections parsed so far (key -> settings)."""
+
+    mpc: dict
+    method: str
+    period: float
+    config: object = None
+    parsed: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Section:
+    """A method's own section of a scenario file, ``mpc.<key>``: ``parse(mapping, context) -> settings`` (a
+    ValueError naming ``mpc.<key>.<field>`` for bad input), ``default()`` (the settings of a file without the
+    section) and whether it is parsed after the PSB-MPC configuration (``after_config``: it may read
+    ``context.config``)."""
+
+    key: str
+    parse: Callable
+    default: Callable
+    after_config: bool = False
+
+
+#: The methods' sections of ``mpc``, by key, in parsing order (every section is validated whatever the method,
+#: so one file can carry the settings of every method).
+SECTIONS: dict[str, Section] = {}
+
+
+def register_section(key: str, parse: Callable, default: Callable, *, after_config: bool = False) -> None:
+    """Let the scenario loader hand ``mpc.<key>`` to ``parse`` (see :class:`Section`); a key may be registered
+    once."""
+    if not isinstance(key, str) or not key.isidentifier():
+        raise ValueError(f"a section key must be an identifier, got {key!r}")
+    if key in SECTIONS:
+        raise ValueError(f"section mpc.{key} is registered already")
+    SECTIONS[key] = Section(key, parse, default, after_config)
+
+
 def check_ships(method: Method, ships: tuple, ship_names) -> None:
     """ValueError if ``method`` plans the own-ship only and ``ships`` holds a target."""
     if method.own_ship_only and tuple(ships) != (0,):
@@ -189,5 +231,5 @@ def build_controllers(scenario, context: BuildContext = BuildContext(), methods:
                        controlled=np.array([m != "none" for m in methods]))
 
 
-__all__ = ["ENTRY_POINT_GROUP", "REGISTRY", "register", "unregister", "names", "get_method", "is_import_path",
+__all__ = ["SECTIONS", "Section", "SectionContext", "register_section", "ENTRY_POINT_GROUP", "REGISTRY", "register", "unregister", "names", "get_method", "is_import_path",
            "check_ships", "Controllers", "build_controllers"]

@@ -31,7 +31,7 @@ def smooth_planner_class():
 
 def smooth_arguments(scenario) -> dict:
     """The keyword arguments of ``SmoothSBMPCPlanner`` for the scenario's own-ship: weights (``mpc.fis``,
-    ``mpc.smooth.k_ntp``; the rest SPEC_SEEDS §1.8 defaults), the ship model from the own-ship's spec (nominal
+    ``mpc.smooth.k_ntp``; the rest Smooth-SBMPC's defaults), the ship model from the own-ship's spec (nominal
     speed, LOS lookahead, acceptance radius, autopilot time constants), the settings (``mpc.smooth``,
     ``mpc.fis``), the solver (the keys of ``mpc.solver`` over SolverSettings' defaults; None without any: the
     planner's own default), the number of starts, ``init_only`` for ``sbmpc_init``, the dtype of

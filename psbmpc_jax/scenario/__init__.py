@@ -10,20 +10,21 @@ problem in a file raises ``ValueError`` naming the key and what is allowed; noth
 
 Modules: :mod:`~psbmpc_jax.scenario.schema` (the dataclasses), :mod:`~psbmpc_jax.scenario.load` (the entry
 points), :mod:`~psbmpc_jax.scenario.mpc` (the ``mpc`` and ``evaluation`` sections),
-:mod:`~psbmpc_jax.scenario.ships` (ship entries), :mod:`~psbmpc_jax.scenario.world` (sensor and chart),
-:mod:`~psbmpc_jax.scenario.fields` (the field readers).  Which names a ship's ``colav`` / ``mpc.method`` may
+:mod:`~psbmpc_jax.scenario.ships` (ship entries), :mod:`~psbmpc_jax.scenario.world` (sensor and chart); the
+field readers are :mod:`psbmpc_jax.config`.  The methods' own sections (``mpc.smooth``, ``mpc.refine``,
+``mpc.sbmpc``, ``mpc.informed``, ``mpc.two_level``, ...) are parsed by the methods' settings modules, which the
+registry hands the loader (:data:`psbmpc_jax.methods.registry.SECTIONS`).  Which names a ship's ``colav`` / ``mpc.method`` may
 take is the method registry's answer (:func:`psbmpc_jax.methods.get_method`).
 """
 
 from .load import builtin_scenarios, estimator_key, load_scenario, scenario_from_dict
-from .schema import (COLAV_MODES, INFORMED_TERM_FIELDS, KNOT, METHODS, MOTION_MODELS, OWN_SHIP_ONLY_METHODS,
-                     RULE18_ROLES, SCENARIO_DIR, SMOOTH_METHODS, VESSEL_MODELS, FisSpec, InformedSpec, MPCSpec,
-                     RefineSpec, Scenario, SensorSpec, ShipSpec, SmoothSpec, SolverSpec, TwoLevelSpec)
+from ..methods.smooth_settings import SMOOTH_METHODS
+from .schema import (COLAV_MODES, KNOT, METHODS, MOTION_MODELS, OWN_SHIP_ONLY_METHODS, RULE18_ROLES, SCENARIO_DIR,
+                     VESSEL_MODELS, MPCSpec, Scenario, SensorSpec, ShipSpec)
 from .ships import route_geometry
 
 __all__ = [
-    "ShipSpec", "SensorSpec", "MPCSpec", "InformedSpec", "RULE18_ROLES", "MOTION_MODELS", "VESSEL_MODELS",
-    "INFORMED_TERM_FIELDS", "TwoLevelSpec", "SmoothSpec", "FisSpec", "SolverSpec", "RefineSpec", "Scenario",
+    "ShipSpec", "SensorSpec", "MPCSpec", "RULE18_ROLES", "MOTION_MODELS", "VESSEL_MODELS", "Scenario",
     "COLAV_MODES", "METHODS", "SMOOTH_METHODS", "OWN_SHIP_ONLY_METHODS", "KNOT", "SCENARIO_DIR",
     "scenario_from_dict", "load_scenario", "builtin_scenarios", "estimator_key", "route_geometry",
 ]

@@ -13,7 +13,7 @@ from .. import scenario_checks as limits
 from ..charts import count_vertices, to_ring_sets
 from ..checks import integer, multiple_of
 
-from .fields import as_mapping, as_number, as_string, check_keys, yaml_load
+from ..config import as_mapping, as_number, as_string, check_keys, yaml_load
 from .mpc import method_name, read_evaluation, read_mpc
 from .schema import SCENARIO_DIR, Scenario
 from .ships import read_ship

@@ -10,9 +10,10 @@ from ..charts import lonlat_to_utm
 from ..checks import MAX_SPEED_MPS, show
 from ..geo import LATLON_MAX_DISTANCE_M, check_latlon, latlon_to_ned
 
-from .fields import as_bool, as_choice, as_mapping, as_number, as_point, as_points, as_string, check_keys, course_rad, direction_of, one_of, read_speed
+from ..config import as_bool, as_choice, as_mapping, as_number, as_point, as_points, as_string, check_keys, course_rad, direction_of, one_of, read_speed
 from .mpc import ship_colav
-from .schema import DEFAULT_ROUTE_MIN_M, MOTION_MODELS, RULE18_ROLES, SMOOTH_METHODS, ShipSpec, VESSEL_MODELS
+from ..methods.smooth_settings import SMOOTH_METHODS
+from .schema import DEFAULT_ROUTE_MIN_M, MOTION_MODELS, RULE18_ROLES, ShipSpec, VESSEL_MODELS
 
 
 _SHIP_KEYS = ("name", "position_m", "position_utm", "position_latlon", "course_deg", "speed_mps", "speed_kn",

@@ -13,7 +13,7 @@ from ..charts import BUILTIN_CHARTS, areal_parts, load_chart, lonlat_to_utm
 from ..checks import multiple_of
 from ..geo import check_latlon
 
-from .fields import as_mapping, as_number, as_points, check_keys, read_speed
+from ..config import as_mapping, as_number, as_points, check_keys, read_speed
 from .schema import CLIP_QUAD_SEGS, SensorSpec
 from .ships import route_geometry
 

@@ -1,5 +1,7 @@
-"""Field readers of the scenario loader: mappings with checked keys, numbers with bounds, points, courses,
-speeds, choices, and the YAML 1.2 loader (duplicate keys refused).  Each error names the key and what is allowed."""
+"""Field readers of configuration files (scenario files and the methods' own sections in them): mappings with
+checked keys (unknown keys get suggestions), numbers with bounds, points, courses, speeds, choices, and the YAML 1.2
+loader (duplicate keys refused).  Degrees and knots are converted to SI here, once.  Each error names the key and
+what is allowed."""
 
 from __future__ import annotations
 import difflib
@@ -8,7 +10,7 @@ import numbers
 import re
 import numpy as np
 import yaml
-from ..checks import MAX_SPEED_MPS, show
+from .checks import MAX_SPEED_MPS, show
 
 # ---------------------------------------------------------------------------------------------- primitives
 def as_mapping(value, where: str) -> dict:
