@@ -28,12 +28,12 @@ from _common import interleaved_parser, run_interleaved  # noqa: E402
 
 def build(name):
     from psbmpc_jax.scenario import load_scenario
-    from psbmpc_jax.sim.colav_two_level import TwoLevelGroup
+    from psbmpc_jax.methods.two_level import TwoLevelController
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         sc = load_scenario(name, method="two_level")
-    planner = TwoLevelGroup(sc).planner
+    planner = TwoLevelController(sc).planner
     own = sc.own_ship
     x0 = np.array([*own.position, own.course, own.speed])
     targets = np.array([[*t.position, t.course, t.speed] for t in sc.targets]).reshape(-1, 4)

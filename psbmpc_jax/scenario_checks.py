@@ -8,7 +8,7 @@ Two parts:
   for legal but suspicious geometry (the straight extension a ship sails after its last waypoint running into
   land, land more than :data:`FAR_LAND_M` from every ship).  :func:`simulation_memory_bytes` estimates the
   simulator's memory and :func:`check_run_size` refuses runs above :data:`MAX_SIM_MEMORY_BYTES`.
-* **The geometry report** of ``scripts/check_scenario_geometry.py`` (:func:`route_clearances`,
+* **The geometry report** of ``tools/check_scenario_geometry.py`` (:func:`route_clearances`,
   :func:`check_file`, :func:`format_report`): route clearance to land and nominal CPAs of every pair of
   ships, read from the YAML mapping directly (independently of the loader) so that it also reports on files
   the loader refuses.

@@ -14,9 +14,11 @@ import pytest
 from psbmpc_jax.evaluate import evaluate
 from psbmpc_jax.packing import pack
 from psbmpc_jax.params import Params, PlannerConfig
-from psbmpc_jax.scenario import (INFORMED_TERM_FIELDS, VESSEL_MODELS, load_scenario, scenario_from_dict)
+from psbmpc_jax.methods.informed_settings import INFORMED_TERM_FIELDS
+from psbmpc_jax.scenario import VESSEL_MODELS, load_scenario, scenario_from_dict
 from psbmpc_jax.sim import simulate, vessel3dof
-from psbmpc_jax.sim.simulator import _ClosedLoop, route_distance
+from psbmpc_jax.methods.base import route_distance
+from psbmpc_jax.sim.simulator import _ClosedLoop
 from psbmpc_jax.situation import Obstacle, OwnShip, Situation
 
 BASE = {
@@ -138,22 +140,22 @@ def test_informed_situation_route_role_and_supervisor():
     lp = loop_of(scen())
     lp.measure(0)
     lp.exchange(0)
-    ob = lp.situation(0, 0, 0, n_ps=1, informed=True).obstacles[0]
+    ob = lp.observe(0).situation(0, 0, n_ps=1, informed=True).obstacles[0]
     np.testing.assert_allclose(ob.waypoints, lp.shared_route(0, 1))
     assert ob.rule18 and ob.n_ps == 1
     # the target 150 m off its plan: the supervisor predicts a straight line
     lp.states[0, 1, 0, 1] += 150.0
-    ob = lp.situation(0, 0, 0, n_ps=1, informed=True).obstacles[0]
+    ob = lp.observe(0).situation(0, 0, n_ps=1, informed=True).obstacles[0]
     assert ob.waypoints is None and ob.rule18                                         # the role is still known
     # route exchange off: straight lines; a ship that shares nothing: no role either
     lp = loop_of(scen(mpc__informed={"route_exchange": False}))
     lp.measure(0)
     lp.exchange(0)
-    assert lp.situation(0, 0, 0, informed=True).obstacles[0].waypoints is None
+    assert lp.observe(0).situation(0, 0, informed=True).obstacles[0].waypoints is None
     lp = loop_of(scen(targets__0__shares_route=False))
     lp.measure(0)
     lp.exchange(0)
-    ob = lp.situation(0, 0, 0, informed=True).obstacles[0]
+    ob = lp.observe(0).situation(0, 0, informed=True).obstacles[0]
     assert ob.waypoints is None and not ob.rule18
 
 
@@ -272,7 +274,7 @@ def test_leg_speeds_in_the_file_move_the_ship_and_are_shared():
     lp.exchange(0)
     np.testing.assert_allclose(lp.shared_leg_speeds(0, 1), [6.0, 3.0, 3.0])      # + the extension leg
     lp.measure(0)
-    ob = lp.situation(0, 0, 0, n_ps=1, informed=True).obstacles[0]
+    ob = lp.observe(0).situation(0, 0, n_ps=1, informed=True).obstacles[0]
     np.testing.assert_allclose(ob.leg_speeds, [6.0, 3.0, 3.0])
 
 

@@ -5,6 +5,12 @@
 * the library (everything outside ``psbmpc_jax/apps/``) does not import the applications ``psbmpc_jax.apps`` (the
   command line, the benchmark harness, the report), not even inside a function;
 * no import cycle among the package's modules at module level (imports inside functions don't count);
+* no import cycle through the method protocol (``psbmpc_jax.methods``) or the scenario loader
+  (``psbmpc_jax.scenario``), counting imports inside functions too;
+* the scenario loader imports no solver, simulator or evaluation code, not even inside a function (the methods
+  build their controllers; the evaluation settings ``evaltool.params`` are the one evaltool module it reads);
+* the light modules of the method protocol (base, registry, the built-in registrations, the settings modules
+  that parse each method's section of a scenario file) import no solver at module level;
 * ``py.typed`` ships with the package.
 """
 
@@ -222,6 +228,60 @@ def test_no_module_level_import_cycles():
                  if i.top_level and i.target in comp]
         lines.append(" <-> ".join(comp) + "\n" + "\n".join(edges))
     assert not lines, "import cycles at module level:\n" + "\n".join(lines)
+
+
+def full_graph() -> dict[str, set[str]]:
+    """Import edges among the package's modules, imports inside functions included."""
+    return {m: {i.target for i in imps if i.target in MODULES} for m, imps in IMPORTS.items()}
+
+
+def test_no_cycles_through_methods_or_scenario_counting_function_level_imports():
+    ours = (f"{PACKAGE}.methods", f"{PACKAGE}.scenario")
+    bad = [" <-> ".join(c) for c in _cycles(full_graph()) if any(m.startswith(ours) for m in c)]
+    assert not bad, "import cycles (imports inside functions counted):\n" + "\n".join(bad)
+
+
+#: What the scenario loader must not import (module name prefixes): the solver and its kernels, the
+#: controllers, the simulator, the applications and the evaluation tool (but its settings module).
+SOLVER_AND_EVALUATION = tuple(f"{PACKAGE}.{m}" for m in (
+    "solve", "evaluate", "refine", "nlp", "smooth", "two_level", "costs", "packing", "ownship", "geometry",
+    "sharding", "rollout_kernel", "planner", "distance_grid", "edge_blocks", "reference", "sim", "methods.grid",
+    "methods.smooth", "methods.two_level", "methods.builtin", "evaltool", "bench", "cli", "report", "plots"))
+SCENARIO_MAY_READ = (f"{PACKAGE}.evaltool.params",)
+
+
+def _forbidden_for_scenario(target: str) -> bool:
+    if target in SCENARIO_MAY_READ:
+        return False
+    return any(target == p or target.startswith(p + ".") or (p.endswith("reference") and target.startswith(p))
+               for p in SOLVER_AND_EVALUATION)
+
+
+def test_scenario_loader_imports_no_solver_or_evaluation_code():
+    loaders = [m for m in MODULES if m == f"{PACKAGE}.scenario" or m.startswith(f"{PACKAGE}.scenario.")]
+    assert len(loaders) >= 6
+    bad = [f"{_where(i)} imports {i.target}" + ("" if i.top_level else " (inside a function)")
+           for m in loaders for i in IMPORTS[m] if _forbidden_for_scenario(i.target)]
+    assert not bad, "the scenario loader must not depend on solver/evaluation code:\n" + "\n".join(bad)
+    assert _forbidden_for_scenario(f"{PACKAGE}.evaltool.tracks") and _forbidden_for_scenario(f"{PACKAGE}.solve")
+    assert _forbidden_for_scenario(f"{PACKAGE}.reference_smooth") and not _forbidden_for_scenario(f"{PACKAGE}.params")
+
+
+def test_the_light_method_modules_import_no_solver_at_module_level():
+    """The scenario loader and the registry import these; the controllers import their solvers in build()."""
+    light = [f"{PACKAGE}.methods", f"{PACKAGE}.methods.base", f"{PACKAGE}.methods.registry",
+             f"{PACKAGE}.methods.builtin", f"{PACKAGE}.methods.sbmpc_family"]
+    light += [m for m in MODULES if m.startswith(f"{PACKAGE}.methods.") and m.endswith("_settings")]
+    assert len(light) >= 9
+    helpers = {f"{PACKAGE}.checks", f"{PACKAGE}.config", f"{PACKAGE}.params"}
+    bad = [f"{_where(i)} imports {i.target}" for m in light for i in IMPORTS[m]
+           if i.top_level and i.target not in light and i.target not in helpers]
+    assert not bad, "light method modules with heavy imports at module level:\n" + "\n".join(bad)
+    tree = [ast.parse(MODULES[m].read_text()) for m in light]
+    third = {a.name.split(".")[0] for t in tree for n in t.body if isinstance(n, ast.Import) for a in n.names}
+    third |= {n.module.split(".")[0] for t in tree for n in t.body if isinstance(n, ast.ImportFrom) and n.module
+              and not n.level}
+    assert not third & {"jax", "jaxlib", "optax", "equinox", "shapely", "matplotlib"}, third
 
 
 def test_py_typed_ships_with_the_package():

@@ -1,5 +1,5 @@
 """The SB-MPC family as methods (psbmpc_jax/methods.py) and a planner per ship in the simulator
-(psbmpc_jax/sim/methods.py): the SB-MPC grid search against its float64 reference, the ``mpc.sbmpc`` and per-ship
+(psbmpc_jax/methods/): the SB-MPC grid search against its float64 reference, the ``mpc.sbmpc`` and per-ship
 ``colav`` keys (good and bad), the registry, a mixed-method closed loop in which every ship runs its own method,
 the random traffic generator and the seed-004 scenario files."""
 
@@ -19,12 +19,13 @@ import pytest
 from psbmpc_jax import reference as ref_mod
 from psbmpc_jax.behaviours import enumerate_behaviours_deg
 from psbmpc_jax.evaluate import evaluate
-from psbmpc_jax.methods import SBMPC_PRESETS, SbmpcSettings, sbmpc_settings, sbmpc_terms
+from psbmpc_jax.methods.sbmpc_family import SBMPC_PRESETS, SbmpcSettings, sbmpc_settings, sbmpc_terms
 from psbmpc_jax.packing import pack
 from psbmpc_jax.params import Params, PlannerConfig
 from psbmpc_jax.scenario import METHODS, load_scenario, scenario_from_dict
-from psbmpc_jax.sim import colav, simulate
-from psbmpc_jax.sim.methods import REGISTRY, build_groups
+from psbmpc_jax.sim import simulate
+from psbmpc_jax.methods.base import BuildContext
+from psbmpc_jax.methods.registry import REGISTRY, build_controllers
 from psbmpc_jax.situation import Obstacle, OwnShip, Situation
 from psbmpc_jax.traffic import random_targets
 
@@ -153,8 +154,8 @@ def test_per_ship_methods_parse():
     (dict(own_ship__colav="sbmpc"), r"own_ship.colav: the own-ship runs mpc.method \(psbmpc\), got colav 'sbmpc'; "
                                     r"set mpc.method: sbmpc"),
     (dict(targets__1__colav="smooth_sbmpc"), r"targets\[1\].colav: smooth_sbmpc plans the own-ship only"),
-    (dict(targets__0__colav="sb-mpc"), r"targets\[0\].colav must be one of \('none', 'psbmpc'.*got 'sb-mpc'"),
-    (dict(targets__0__colav=3), r"targets\[0\].colav must be one of .*got 3"),
+    (dict(targets__0__colav="sb-mpc"), r"targets\[0\].colav must be 'none', a known method \(psbmpc, .*got 'sb-mpc'"),
+    (dict(targets__0__colav=3), r"targets\[0\].colav must be 'none', a known method .*got 3"),
     (dict(targets__0__speed_mps=0), r"targets\[0\]: a ship with colav sbmpc needs a nominal speed > 0"),
     (dict(mpc__sbmpc={"preset": "tengesdal"}), r"mpc.sbmpc.preset must be one of tengesdal2020, river, got "
                                                r"'tengesdal'"),
@@ -164,8 +165,8 @@ def test_per_ship_methods_parse():
     (dict(mpc__sbmpc={"n_mc": 0}), r"mpc.sbmpc.n_mc must be an integer >= 1"),
     (dict(mpc__sbmpc={"n_mc": 2_000_000}), r"mpc.sbmpc.n_mc must be an integer <= 1000000"),
     (dict(mpc__sbmpc={"grounding": "no"}), r"mpc.sbmpc.grounding must be true or false"),
-    (dict(mpc__method="sbmpc2020"), r"mpc.method must be one of psbmpc, .*psbmpc_2020, informed_sbmpc, two_level, "
-                                    r"got 'sbmpc2020'"),
+    (dict(mpc__method="sbmpc2020"), r"mpc.method must be a known method \(psbmpc, .*psbmpc_2020, .*two_level\) or "
+                                    r"an import path 'package.module:Name' .*got 'sbmpc2020'"),
 ])
 def test_bad_methods_and_settings_name_the_ship_or_key(change, match):
     with pytest.raises(ValueError, match=match):
@@ -175,19 +176,19 @@ def test_bad_methods_and_settings_name_the_ship_or_key(change, match):
 # ============================================================================= registry and closed loop
 def test_registry_covers_every_method_and_groups_by_method():
     assert set(REGISTRY) == set(METHODS)
-    assert {n for n, m in REGISTRY.items() if not m.targets} == {"smooth_sbmpc", "sbmpc_init", "two_level"}
+    assert {n for n, m in REGISTRY.items() if m.own_ship_only} == {"smooth_sbmpc", "sbmpc_init", "two_level"}
     sc = scenario_from_dict(mixed())
-    c = colav.build(sc, "loop", None, None)
-    by = {g.method: g.ships for g in c.groups}
+    c = build_controllers(sc)
+    by = {g.method: g.ships for g in c.controllers}
     assert by == {"psbmpc": (0,), "sbmpc": (1, 3), "psbmpc_2020": (2,)}
     assert c.methods == ("psbmpc", "sbmpc", "psbmpc_2020", "sbmpc") and c.snapshots and c.uses_grid
-    g = {g.method: g for g in c.groups}
+    g = {g.method: g for g in c.controllers}
     assert g["sbmpc"].n_ps == 1 and g["psbmpc_2020"].n_ps == 1 and g["psbmpc"].n_ps is None
     assert [t.name for t in g["sbmpc"].terms] == ["sbmpc", "manoeuvring"]            # open water: no grounding
-    with pytest.raises(ValueError, match=r"unknown method\(s\) \['foo'\]"):
-        build_groups(sc, "loop", None, None, ("psbmpc", "foo", "none", "none"))
+    with pytest.raises(ValueError, match=r"ship 'A' colav must be 'none', a known method \(psbmpc, .*got 'foo'"):
+        build_controllers(sc, methods=("psbmpc", "foo", "none", "none"))
     with pytest.raises(ValueError, match=r"ship\(s\) \['A'\]: method smooth_sbmpc plans the own-ship only"):
-        build_groups(sc, "loop", None, None, ("none", "smooth_sbmpc", "none", "none"))
+        build_controllers(sc, methods=("none", "smooth_sbmpc", "none", "none"))
 
 
 @pytest.mark.skipif(not HAVE_MCSKF, reason="psbmpc_jax.costs.mcskf missing")
@@ -215,7 +216,7 @@ def test_sbmpc_only_scenario_on_a_chart_adds_grounding_and_batches():
     d["targets"] = d["targets"][:1]
     d["chart"] = {"polygons_m": [[[150, 60], [250, 60], [250, 120], [150, 120]]]}
     sc = scenario_from_dict(d, land_checks="warn")
-    (g,) = [g for g in colav.build(sc, "vmap", None, None).groups]
+    (g,) = build_controllers(sc, BuildContext(mode="vmap")).controllers
     assert g.ships == (0, 1) and [t.name for t in g.terms] == ["sbmpc", "manoeuvring", "so"]
     res = simulate(sc, runs=2)
     assert np.all(np.isfinite(res.offsets)) and not res.metrics[0]["grounding"]

@@ -208,7 +208,7 @@ ERRORS = [
     ("description_type", _top("description", 3), r"description must be a string, got 3"),
     ("targets_not_list", _top("targets", {"name": "TS1"}), r"targets must be a list of ships, got dict"),
     ("own_not_mapping", _top("own_ship", [1, 2]), r"own_ship must be a mapping"),
-    ("colav_bad", _set(tgt, "colav", "mpc"), r"targets\[0\].colav must be one of \('none', 'psbmpc', .*\), got 'mpc'"),
+    ("colav_bad", _set(tgt, "colav", "mpc"), r"targets\[0\].colav must be 'none', a known method \(psbmpc, .*\) or an import path .*got 'mpc'"),
     ("psbmpc_not_moving", lambda d: own(d).update(speed_mps=0), r"own_ship: a ship with colav psbmpc needs a nominal "
                                                                  r"speed > 0"),
     # waypoints of the wrong shape

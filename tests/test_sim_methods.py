@@ -1,4 +1,4 @@
-"""Own-ship methods in the closed-loop simulator (psbmpc_jax/sim/colav.py): the ``mpc.method`` / ``mpc.smooth`` /
+"""Own-ship methods in the closed-loop simulator (psbmpc_jax/methods/): the ``mpc.method`` / ``mpc.smooth`` /
 ``mpc.fis`` / ``mpc.solver`` / ``mpc.refine`` keys (good and bad), point targets, the dispatch (who runs what),
 the voyage metrics of seed 000 on hand-computed trajectories, short closed loops of every method available
 (PSB-MPC; the refinement's per-step controls through a stand-in refine function; the original SB-MPC through
@@ -25,10 +25,14 @@ import pytest
 import yaml
 
 from psbmpc_jax.apps.cli import main
-from psbmpc_jax.scenario import (METHODS, FisSpec, RefineSpec, SmoothSpec, SolverSpec, load_scenario,
-                                 scenario_from_dict)
+from psbmpc_jax.methods.refine_settings import RefineSpec
+from psbmpc_jax.methods.smooth_settings import FisSpec, SmoothSpec, SolverSpec
+from psbmpc_jax.scenario import METHODS, load_scenario, scenario_from_dict
 from psbmpc_jax.scenario_checks import ScenarioWarning
-from psbmpc_jax.sim import colav, simulate
+from psbmpc_jax.methods import grid, smooth
+from psbmpc_jax.methods.base import tracked_targets
+from psbmpc_jax.methods.registry import build_controllers
+from psbmpc_jax.sim import simulate
 from psbmpc_jax.sim.metrics import aggregate, run_metrics, voyage_metrics
 
 REPO = pathlib.Path(__file__).resolve().parents[1]
@@ -114,8 +118,8 @@ def test_defaults_are_the_method_modules_defaults():
     assert m.solver == SolverSpec() and m.solver.given() == {}              # each method's own solver default
     assert m.refine == RefineSpec()
     sc = load_scenario("head_on", method="smooth_sbmpc")
-    assert colav.smooth_arguments(sc)["solver"] is None
-    kw = colav.refine_settings(sc.mpc, FakeRefineSettings).kw
+    assert smooth.smooth_arguments(sc)["solver"] is None
+    kw = grid.refine_settings(sc.mpc, FakeRefineSettings).kw
     assert "solver" not in kw and "fis_n_y" not in kw
 
 
@@ -129,9 +133,11 @@ def test_preset_is_optional_only_for_the_smooth_methods():
 
 
 BAD = [
-    ("method", with_("mpc.method", "smooth"), r"mpc.method must be one of psbmpc, psbmpc_refine, smooth_sbmpc, "
-                                              r"sbmpc_init, sbmpc, psbmpc_2020, informed_sbmpc, two_level, got 'smooth'"),
-    ("method_type", with_("mpc.method", 3), r"mpc.method must be one of .*got 3"),
+    ("method", with_("mpc.method", "smooth"), r"mpc.method must be a known method \(psbmpc, psbmpc_refine, sbmpc, "
+                                              r"psbmpc_2020, informed_sbmpc, smooth_sbmpc, sbmpc_init, two_level\) or an "
+                                              r"import path 'package.module:Name' of a psbmpc_jax.methods.Method, "
+                                              r"got 'smooth'"),
+    ("method_type", with_("mpc.method", 3), r"mpc.method must be a known method .*got 3"),
     ("smooth_unknown", with_("mpc.smooth.T_init", 8), r"unknown key 'T_init' in mpc.smooth \(did you mean "
                                                       r"'T_init_s'\?\); allowed keys: T_init_s, T_mpc_s"),
     ("smooth_mapping", with_("mpc.smooth", [1]), r"mpc.smooth must be a mapping"),
@@ -207,7 +213,7 @@ def test_method_override(tmp_path):
     for method in METHODS:
         assert load_scenario(path, method=method).mpc.method == method
         assert scenario_from_dict(tiny(), method=method).mpc.method == method
-    with pytest.raises(ValueError, match=r"method \(the override of mpc.method\) must be one of"):
+    with pytest.raises(ValueError, match=r"method \(the override of mpc.method\) must be a known method"):
         scenario_from_dict(tiny(), method="three_level")
     # the override is validated like the file: here the smooth step does not divide the update period
     d = tiny(smooth={"T_init_s": 9, "T_mpc_s": 3, "dt_s": 3})
@@ -235,40 +241,40 @@ def test_point_targets_and_route_over_land():
 
 
 # ============================================================================================= dispatch
-def test_dispatch_who_runs_what():
-    params, samples = None, None
+def test_dispatch_who_runs_what(monkeypatch):
     sc = scenario_from_dict(tiny())
-    c = colav.build(sc, "loop", params, samples)
-    assert c.method == "psbmpc" and [type(g).__name__ for g in c.groups] == ["GridGroup"]
-    assert c.groups[0].ships == (0,) and c.groups[0].refine_ships == () and c.snapshots
+    c = build_controllers(sc)
+    assert c.method == "psbmpc" and [type(g).__name__ for g in c.controllers] == ["GridController"]
+    assert c.controllers[0].ships == (0,) and c.controllers[0].refine_ships == () and c.snapshots
     # a target with its own PSB-MPC keeps it under a smooth own-ship method; the own-ship gets the smooth planner
+    monkeypatch.setattr(smooth, "smooth_planner_class", lambda: smooth.SmoothStepPlanner)
     d = tiny(method="sbmpc_init")
     d["targets"][0]["colav"] = "psbmpc"
-    c = colav.build(scenario_from_dict(d), "loop", params, samples, smooth_planner_cls=colav.SmoothStepPlanner)
-    assert [type(g).__name__ for g in c.groups] == ["GridGroup", "SmoothGroup"]     # registry order
-    assert c.groups[0].ships == (1,) and not c.snapshots and list(c.controlled) == [True, True]
-    assert c.groups[1].planner.init_only and c.methods == ("sbmpc_init", "psbmpc")
+    c = build_controllers(scenario_from_dict(d))
+    assert [type(g).__name__ for g in c.controllers] == ["GridController", "SmoothController"]     # registry order
+    assert c.controllers[0].ships == (1,) and not c.snapshots and list(c.controlled) == [True, True]
+    assert c.controllers[1].planner.init_only and c.methods == ("sbmpc_init", "psbmpc")
     # no collision avoidance on the own-ship: no method, no planner
     d = tiny(method="smooth_sbmpc")
     d["own_ship"]["colav"] = "none"
-    c = colav.build(scenario_from_dict(d), "loop", params, samples)
-    assert c.method is None and c.groups == []
+    c = build_controllers(scenario_from_dict(d))
+    assert c.method is None and c.own is None and c.controllers == []
 
 
 def test_smooth_planner_arguments_come_from_the_file():
     sc = scenario_from_dict(tiny(method="smooth_sbmpc", fis={"d_cl_m": 30, "n_y": 21, "completion": "literal"}))
-    kw = colav.smooth_arguments(sc)
+    kw = smooth.smooth_arguments(sc)
     m, s, w, sol = kw["model"], kw["settings"], kw["weights"], kw["solver"]
     own = sc.own_ship
     assert (m.U_d, m.lookahead, m.R_a, m.T_chi, m.T_U) == (own.U_d, 15.0, 5.0, 3.0, 5.0)
     assert (s.T_init, s.T_mpc, s.dt, s.n_y, s.fis_completion) == (8.0, 4.0, 1.0, 21, "literal")
     assert (w.d_cl, sol.max_outer, sol.max_inner) == (30.0, 2, 5)
     assert kw["n_starts"] == 1 and kw["init_only"] is False and kw["dtype"] == "float32"
-    assert colav.smooth_arguments(scenario_from_dict(tiny(method="sbmpc_init")))["init_only"] is True
+    assert smooth.smooth_arguments(scenario_from_dict(tiny(method="sbmpc_init")))["init_only"] is True
     assert "previous_start" not in kw                                  # off: the planner's own default
     on = {"T_init_s": 8, "T_mpc_s": 4, "dt_s": 1, "n_starts": 2, "previous_start": True}
-    assert colav.smooth_arguments(scenario_from_dict(tiny(method="smooth_sbmpc", smooth=on)))["previous_start"]
-    assert "previous_start" not in colav.smooth_arguments(scenario_from_dict(tiny(method="sbmpc_init", smooth=on)))
+    assert smooth.smooth_arguments(scenario_from_dict(tiny(method="smooth_sbmpc", smooth=on)))["previous_start"]
+    assert "previous_start" not in smooth.smooth_arguments(scenario_from_dict(tiny(method="sbmpc_init", smooth=on)))
 
 
 class PreviousRecorder:
@@ -287,12 +293,12 @@ class PreviousRecorder:
         chi = 0.01 * (10 * m + np.arange(self.n))[None, :] + 0.001 * np.arange(R)[:, None]
         controls = np.stack([np.ones_like(chi), chi], axis=-1)
         zero = np.zeros(R)
-        return colav.StepPlan(controls[:, 0], controls, np.zeros((R, 9, 4)), zero, zero, zero, np.ones(R, bool),
+        return smooth.StepPlan(controls[:, 0], controls, np.zeros((R, 9, 4)), zero, zero, zero, np.ones(R, bool),
                               zero.astype(int), zero.astype(int))
 
 
 def test_the_simulator_hands_the_shifted_previous_plan_to_the_next_update(monkeypatch):
-    monkeypatch.setattr(colav, "smooth_planner_class", lambda: PreviousRecorder)
+    monkeypatch.setattr(smooth, "smooth_planner_class", lambda: PreviousRecorder)
     PreviousRecorder.seen = []
     on = {"T_init_s": 8, "T_mpc_s": 4, "dt_s": 1, "n_starts": 2, "previous_start": True}
     r = simulate(scenario_from_dict(tiny(method="smooth_sbmpc", smooth=on)), batch="loop")
@@ -319,11 +325,11 @@ def test_missing_refine_is_a_clear_error():
 
 def test_tracked_targets_and_consistent_sequences():
     tx = np.array([[[10.0, 5.0, 0.0, 2.0], [0.0, 0.0, -1.0, 0.0]]])
-    out = colav.tracked_targets(tx)
+    out = tracked_targets(tx)
     np.testing.assert_allclose(out, [[[10.0, 5.0, np.pi / 2, 2.0], [0.0, 0.0, np.pi, 1.0]]])
     first = np.array([[1.0, 0.1], [0.5, 0.0]])
     ctrl = np.array([[[1.0, 0.1], [0.9, 0.2]], [[1.0, 0.3], [0.8, 0.3]]])   # job 1 starts elsewhere: held
-    np.testing.assert_array_equal(colav.consistent_sequences(first, ctrl),
+    np.testing.assert_array_equal(grid.consistent_sequences(first, ctrl),
                                   [[[1.0, 0.1], [0.9, 0.2]], [[0.5, 0.0], [0.5, 0.0]]])
 
 
@@ -438,7 +444,7 @@ def test_refine_previous_start_hands_the_shifted_refinement_to_the_next_update(m
         controls = np.stack([1.0 - 0.01 * j, 0.01 * j + 0.1 * len(seen)], axis=-1)
         return FakeRefinement(controls, controls[0], 1.0, 2.0, 0.0, False, 0, 7, 0)
 
-    monkeypatch.setattr(colav, "_refine_function", lambda: (fake_refine, FakePreviousSettings))
+    monkeypatch.setattr(grid, "refine_function", lambda: (fake_refine, FakePreviousSettings))
     d = tiny(method="psbmpc_refine", refine={"n_starts": 2, "previous_start": True})
     simulate(scenario_from_dict(d), batch="loop")
     assert len(seen) == 4 and all(w is not None and w.shape == (40, 2) for w in seen)
@@ -451,7 +457,7 @@ def test_refine_previous_start_hands_the_shifted_refinement_to_the_next_update(m
     for refine, on in (({"n_starts": 2}, True), ({"n_starts": 1}, False), ({"previous_start": False}, False), ({}, True)):
         sc = scenario_from_dict(tiny(method="psbmpc_refine", refine=refine))
         assert sc.mpc.refine.previous_start is on
-        assert colav.refine_settings(sc.mpc, FakeRefineSettings).kw.get("previous_start", False) is on
+        assert grid.refine_settings(sc.mpc, FakeRefineSettings).kw.get("previous_start", False) is on
 
 
 def test_refine_path_applies_the_per_step_controls(monkeypatch):
@@ -465,7 +471,7 @@ def test_refine_path_applies_the_per_step_controls(monkeypatch):
         controls = np.stack([1.0 - 0.05 * j, 0.01 * j], axis=-1)
         return FakeRefinement(controls, controls[0], 1.0, 2.0, 0.0, False, 0, 7, 0)
 
-    monkeypatch.setattr(colav, "_refine_function", lambda: (fake_refine, FakeRefineSettings))
+    monkeypatch.setattr(grid, "refine_function", lambda: (fake_refine, FakeRefineSettings))
     d = tiny(method="psbmpc_refine", refine={"n_starts": 2, "horizon_s": 10, "colregs": "none"})
     r = simulate(scenario_from_dict(d), batch="loop")
     assert r.method == "psbmpc_refine" and len(calls) == 2 * 2                 # the own-ship of 2 runs, 2 updates
@@ -485,7 +491,7 @@ def test_refine_path_applies_the_per_step_controls(monkeypatch):
     assert r.summary["device_calls"] == 4 + 4                                  # the solves, then the refinements
 
 
-class RecordingPlanner(colav.SmoothStepPlanner):
+class RecordingPlanner(smooth.SmoothStepPlanner):
     """The init-stage adapter, recording what the simulator hands it."""
 
     seen: list = []
@@ -501,7 +507,7 @@ class RecordingPlanner(colav.SmoothStepPlanner):
 @pytest.fixture(scope="module")
 def init_run():
     mp = pytest.MonkeyPatch()
-    mp.setattr(colav, "smooth_planner_class", lambda: RecordingPlanner)
+    mp.setattr(smooth, "smooth_planner_class", lambda: RecordingPlanner)
     RecordingPlanner.seen = []
     try:
         yield simulate(scenario_from_dict(tiny(method="sbmpc_init")), batch="loop"), list(RecordingPlanner.seen)
@@ -563,7 +569,7 @@ def test_metrics_and_figures_of_a_method_run(init_run, psbmpc_run, tmp_path):
 
 # ============================================================================================= CLI
 def test_cli_method_override(tmp_path, monkeypatch, psbmpc_run, init_run):
-    monkeypatch.setattr(colav, "smooth_planner_class", lambda: colav.SmoothStepPlanner)
+    monkeypatch.setattr(smooth, "smooth_planner_class", lambda: smooth.SmoothStepPlanner)
     path = tmp_path / "tiny_methods.yaml"
     path.write_text(yaml.safe_dump(tiny()))
     out = tmp_path / "out"
@@ -583,7 +589,9 @@ def test_cli_method_override(tmp_path, monkeypatch, psbmpc_run, init_run):
 def test_cli_method_errors(tmp_path, capsys):
     with pytest.raises(SystemExit) as exc:
         main(["run", "head_on", "--method", "three_level", "--out", str(tmp_path)])
-    assert exc.value.code == 2 and "invalid choice: 'three_level'" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert exc.value.code == 2 and "--method must be a known method" in err and "got 'three_level'" in err
+    assert "two_level" in err                                                   # the known names, listed
     path = tmp_path / "nopreset.yaml"
     path.write_text(yaml.safe_dump(with_("mpc.preset", None, tiny(method="smooth_sbmpc"))))
     with pytest.raises(SystemExit) as exc:
@@ -666,7 +674,7 @@ def test_psbmpc_refine_with_refine():
 @slow[1]
 def test_smooth_sbmpc_with_the_step_adapter(monkeypatch):
     """The full Smooth-SBMPC step (init stage, corridor, DOCP, safeguard) in the closed loop, via the adapter."""
-    monkeypatch.setattr(colav, "smooth_planner_class", lambda: colav.SmoothStepPlanner)
+    monkeypatch.setattr(smooth, "smooth_planner_class", lambda: smooth.SmoothStepPlanner)
     # float64 as in tests/test_smooth_docp.py: float32 under 64-bit JAX (conftest) mixes dtypes in the DOCP
     d = tiny(method="smooth_sbmpc", config={"T": 20, "dtype": "float64"})
     r = simulate(scenario_from_dict(d), batch="loop")
@@ -683,11 +691,11 @@ def test_refine_block_is_the_update_period_by_default_and_block_s_overrides_it()
     mpc = sc.mpc
     assert mpc.refine.block is None
     want = max(1, round(min(mpc.period, mpc.config.T) / mpc.config.dt))
-    assert colav.refine_settings(mpc, RefineSettings).block == want
+    assert grid.refine_settings(mpc, RefineSettings).block == want
     d = tiny(method="psbmpc_refine", refine={"block_s": 2 * sc.mpc.config.dt})
     m2 = scenario_from_dict(d).mpc
     assert m2.refine.block == 2 * sc.mpc.config.dt
-    assert colav.refine_settings(m2, RefineSettings).block == 2
+    assert grid.refine_settings(m2, RefineSettings).block == 2
 
 
 @pytest.mark.parametrize("block_s, match", [(0, "block_s"), (-1, "block_s"), ("x", "block_s"),

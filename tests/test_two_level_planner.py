@@ -1,4 +1,4 @@
-"""The two-level method (psbmpc_jax/two_level/planner.py, psbmpc_jax/sim/colav_two_level.py): one update's
+"""The two-level method (psbmpc_jax/two_level/planner.py, psbmpc_jax/methods/two_level.py): one update's
 command is the upper level's plus the SB-MPC's modification; a head-on target in a channel makes the first
 manoeuvre a starboard one; the static circle and the corridor hold in a short closed loop; ``mpc.two_level`` in
 the scenario file (good and bad keys); the simulator applies the absolute commands."""
@@ -11,9 +11,10 @@ import math
 import numpy as np
 import pytest
 
-from psbmpc_jax.methods import SbmpcSettings
+from psbmpc_jax.methods.sbmpc_family import SbmpcSettings
 from psbmpc_jax.params import PlannerConfig
-from psbmpc_jax.scenario import TwoLevelSpec, scenario_from_dict
+from psbmpc_jax.methods.two_level_settings import TwoLevelSpec
+from psbmpc_jax.scenario import scenario_from_dict
 from psbmpc_jax.sim import simulate
 from psbmpc_jax.two_level.path_mpc import PathMpcSettings, rk4_step
 from psbmpc_jax.two_level.planner import TwoLevelPlanner, TwoLevelSettings

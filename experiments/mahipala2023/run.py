@@ -133,7 +133,7 @@ def main(argv=None) -> int:
 
     from psbmpc_jax.scenario import load_scenario
     from psbmpc_jax.sim import simulate
-    from psbmpc_jax.sim.colav_two_level import TwoLevelGroup
+    from psbmpc_jax.methods.two_level import TwoLevelController
     from psbmpc_jax.sim.output import write_outputs
 
     out, doc = start(args.out, STUDY, force=args.force, runs=args.runs, method="two_level")
@@ -143,7 +143,7 @@ def main(argv=None) -> int:
         t0 = time.perf_counter()
         res = simulate(sc, runs=args.runs, progress=not args.quiet)
         wall = time.perf_counter() - t0
-        planner = TwoLevelGroup(sc).planner                  # the same corridors and circles (cached)
+        planner = TwoLevelController(sc).planner                  # the same corridors and circles (cached)
         write_outputs(res, out / name, figures=True)
         if ref_xy is None:
             ref_xy = res.states[0, 0, :, :2]

@@ -51,11 +51,12 @@ def main(argv=None) -> int:
 
     from psbmpc_jax.provenance import commit
     from psbmpc_jax.scenario import load_scenario
-    from psbmpc_jax.sim import colav, simulate
+    from psbmpc_jax.methods import grid
+    from psbmpc_jax.sim import simulate
 
     started_at = commit()
     seen, terms_seen = [], []
-    original = colav._Solver._refine_one
+    original = grid._Solver._refine_one
 
     def recording(self, inputs, plan, state, evaluation):
         ref = original(self, inputs, plan, state, evaluation)
@@ -64,15 +65,15 @@ def main(argv=None) -> int:
                            {k: np.asarray(v, np.float64) for k, v in evaluation.costs.items()}))
         return ref
 
-    colav._Solver._refine_one = recording
+    grid._Solver._refine_one = recording
     if args.start_margin is not None:
-        settings_of = colav.refine_settings
+        settings_of = grid.refine_settings
 
         def with_margin(mpc, cls):
             s = settings_of(mpc, cls)
             return s.replace(solver=s.solver.replace(start_margin=args.start_margin))
 
-        colav.refine_settings = with_margin
+        grid.refine_settings = with_margin
     sc = load_scenario("nidelva", method="psbmpc_refine")
     res = simulate(sc, runs=args.runs, progress=False)
     behaviours = np.asarray(sc.mpc.behaviours)

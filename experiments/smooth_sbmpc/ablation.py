@@ -92,7 +92,8 @@ def main(argv=None) -> int:
 
     from psbmpc_jax.provenance import commit
     from psbmpc_jax.scenario import load_scenario
-    from psbmpc_jax.sim import colav, simulate
+    from psbmpc_jax.methods import smooth
+    from psbmpc_jax.sim import simulate
     from psbmpc_jax.smooth.planner import SmoothSBMPCPlanner
 
     record: list = []
@@ -110,7 +111,7 @@ def main(argv=None) -> int:
             record.append((np.asarray(plan.psi), np.asarray(plan.controls)))
             return plan
 
-    colav.smooth_planner_class = lambda: Recording
+    smooth.smooth_planner_class = lambda: Recording
     started_at = commit()                  # the code this process imported (later edits do not change it)
 
     out = output_folder(args.out, STUDY / f"results_{utc_stamp()}", force=args.force)

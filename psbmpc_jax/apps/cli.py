@@ -12,12 +12,19 @@ import tempfile
 import time
 
 from ..cache import enable_compilation_cache
+from ..methods import get_method, names
 from .argtypes import nonneg_int, odd_int, positive_int, runs_int, seed_int
 
-#: ``psbmpc-jax run --method`` choices (the same as psbmpc_jax.scenario.METHODS; kept here so that building the
-#: parser imports nothing heavy).
-METHODS = ("psbmpc", "psbmpc_refine", "smooth_sbmpc", "sbmpc_init", "sbmpc", "psbmpc_2020", "informed_sbmpc",
-           "two_level")
+
+
+def method_arg(value: str) -> str:
+    """``--method``: a registered method, an entry point's or an import path ``package.module:Name`` (the
+    registry's rules, :func:`psbmpc_jax.methods.get_method`); anything else is refused with the known names."""
+    try:
+        get_method(value, "--method")
+    except (ValueError, ImportError, TypeError) as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
+    return value
 
 DESCRIPTION = """\
 PSB-MPC ship collision avoidance in JAX.
@@ -160,12 +167,11 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("scenarios", nargs="*", help="built-in scenario names or patterns (see --list), or YAML paths")
     p.add_argument("--list", action="store_true",
                    help="list the built-in scenarios (name, description, file) and exit")
-    p.add_argument("--method", choices=METHODS, default=None,
-                   help="the own-ship's controller, overriding the file's mpc.method: psbmpc (grid search), "
-                        "psbmpc_refine (grid search + gradient refinement), smooth_sbmpc (Smooth-SBMPC, seed 000), "
-                        "sbmpc_init (its initialisation stage alone: the original SB-MPC), sbmpc, psbmpc_2020, "
-                        "informed_sbmpc, two_level (the two-level MPC, seed 001). The results go to "
-                        "OUT/SCENARIO_METHOD, so methods can be compared side by side")
+    p.add_argument("--method", type=method_arg, default=None,
+                   help="the own-ship's controller, overriding the file's mpc.method: one of "
+                        f"{', '.join(names())} (docs/methods/), or your own as an import path package.module:Name "
+                        "(docs/controllers.md). The results go to OUT/SCENARIO_METHOD, so methods can be "
+                        "compared side by side")
     p.add_argument("--runs", type=runs_int, default=None, help="Monte Carlo runs (default: the file's)")
     p.add_argument("--seed", type=seed_int, default=None,
                    help="base seed >= 0 (default: the file's); also seeds the mc/ce sample table")
@@ -283,8 +289,9 @@ def _missing_file_hint(item: str, names) -> str:
 
 
 def output_folder(name: str, method: str | None) -> str:
-    """The scenario's folder under ``--out``: its name, with ``_<method>`` appended when ``--method`` is given."""
-    return name if method is None else f"{name}_{method}"
+    """The scenario's folder under ``--out``: its name, with ``_<method>`` appended when ``--method`` is given (an
+    import path's ``.`` and ``:`` as ``_``)."""
+    return name if method is None else f"{name}_{method.replace(':', '_').replace('.', '_')}"
 
 
 def _verdict(s: dict) -> str:

@@ -5,7 +5,6 @@ the figures of :mod:`psbmpc_jax.sim.plots` and, on request, every run's trajecto
 from __future__ import annotations
 
 import csv
-import dataclasses
 import datetime as _dt
 import json
 import math
@@ -61,9 +60,7 @@ def scenario_info(sc) -> dict:
         "collision_distance_m": sc.d_collision,
         "mpc": {"method": sc.mpc.method, "preset": sc.mpc.preset, "update_period_s": sc.mpc.period,
                 "n_ps": sc.mpc.n_ps, "n_cbs": int(len(sc.mpc.behaviours)), "config": vars(sc.mpc.config).copy(),
-                "params": p.as_dict(), **method_settings(sc.mpc),
-                **({"sbmpc": dataclasses.asdict(sc.mpc.sbmpc)}
-                   if any(s.colav in ("sbmpc", "psbmpc_2020") for s in sc.ships) else {})},
+                "params": p.as_dict(), **method_settings(sc)},
         "sensor": vars(sc.sensor).copy(),
         "chart": sc.chart_info,
         "ships": [{"name": s.name, "colav": s.colav, "length_m": s.length, "width_m": s.width,
@@ -73,19 +70,16 @@ def scenario_info(sc) -> dict:
     }
 
 
-def method_settings(mpc) -> dict:
-    """The settings of the own-ship's method beyond the PSB-MPC preset (empty for ``psbmpc``): ``smooth``,
-    ``fis`` and ``solver`` for the smooth methods, ``refine`` and ``solver`` for ``psbmpc_refine`` (``solver``:
-    the keys the file gives; the rest is the method's own default)."""
-    from dataclasses import asdict
+def method_settings(sc) -> dict:
+    """What every method in use records about itself (:meth:`psbmpc_jax.methods.Method.record`): the own-ship's
+    at the top level (e.g. ``smooth``, ``fis``, ``solver``, ``refine``, ``sbmpc``), and every ship's method under
+    ``methods`` (name -> its record; the PSB-MPC ``params`` and ``config`` above are shared by all)."""
+    from ..methods.registry import get_method
 
-    if mpc.method in ("smooth_sbmpc", "sbmpc_init"):
-        return {"smooth": asdict(mpc.smooth), "fis": asdict(mpc.fis), "solver": mpc.solver.given()}
-    if mpc.method == "psbmpc_refine":
-        return {"refine": asdict(mpc.refine), "solver": mpc.solver.given()}
-    if mpc.method in ("sbmpc", "psbmpc_2020"):
-        return {"sbmpc": asdict(mpc.sbmpc)}
-    return {}
+    in_use = dict.fromkeys(s.colav for s in sc.ships if s.colav != "none")
+    records = {name: get_method(name).record(sc) for name in in_use}
+    own = sc.own_ship.colav
+    return {**(records[own] if own != "none" else {}), "methods": records}
 
 
 def colregs_evaluation(result) -> dict:
@@ -152,11 +146,10 @@ def summary_markdown(result, evaluation: dict | None = None) -> str:
     (``evaluation``: :func:`colregs_evaluation` of ``result``, computed when not given)."""
     sc, s = result.scenario, result.summary
     m = sc.mpc
-    if m.method in ("smooth_sbmpc", "sbmpc_init"):
-        how = (f"own-ship method `{m.method}` (T_init {m.smooth.T_init:g} s, T_mpc {m.smooth.T_mpc:g} s, T_s "
-               f"{m.smooth.dt:g} s)")
-    else:
-        how = (f"own-ship method `{m.method}`, preset `{m.preset}`, {len(m.behaviours)} behaviours, n_ps {m.n_ps}")
+    from ..methods.registry import get_method
+
+    details = get_method(m.method).describe(sc)
+    how = f"own-ship method `{m.method}`" + (f" ({details})" if details else "")
     lines = [f"# {sc.name}: {s['runs']} closed-loop runs", "",
              sc.description or "", "",
              f"- {how}, MPC every {m.period:g} s, simulation {sc.duration:g} s at dt {sc.dt:g} s, seed {sc.seed}",

@@ -4,14 +4,14 @@ Per simulation step (``scenario.dt``), for all runs at once (NumPy arrays ``[R, 
 
 1. every ``sensor.period``: noisy position measurements of the targets update the own-ship's Kalman-filter
    tracks (constant-velocity model, single-point initiation; :mod:`psbmpc_jax.sim.tracker`);
-2. every ``mpc.period``: every ship with collision avoidance plans once (:mod:`psbmpc_jax.sim.colav` says
-   which controller runs which ship: each the method its ``colav`` names, the own-ship the one of
-   ``mpc.method``).  The own-ship sees the targets through its tracks (estimate + covariance); targets that
-   plan see the other ships' true states with a small fixed covariance (``sensor.colav_target_cov``).  All
-   solves of one grid-search method in one update -- every run and every ship running it -- go to the
-   device together, as one ``vmap``-ed call (``batch="vmap"``) or one call each (``batch="loop"``);
-   the smooth methods plan all runs in one call; the planner state (last applied offsets) is carried per run
-   and ship;
+2. every ``mpc.period``: every ship with collision avoidance plans once.  Each ship runs the method its
+   ``colav`` names (the own-ship the one of ``mpc.method``), looked up in :mod:`psbmpc_jax.methods.registry`;
+   one controller per method serves all its ships and runs.  The simulator hands every controller an
+   :class:`~psbmpc_jax.methods.base.Observation` (true states, the own-ship's tracks, applied offsets, routes,
+   shared routes) and applies the :class:`~psbmpc_jax.methods.base.Decision` it returns -- nothing else passes
+   between them, and the simulator knows no method by name.  The built-in grid-search controllers send all
+   solves of one update to the device together, as one ``vmap``-ed call (``batch="vmap"``) or one call each
+   (``batch="loop"``);
 3. the true vessels move one step: LOS guidance on their routes with the controller's course offset and speed
    factor (the row of a per-step sequence that is due, for the gradient methods), kinematic model with
    autopilot lags (:mod:`psbmpc_jax.sim.vessel`).
@@ -23,49 +23,29 @@ replays identically whatever the number of runs simulated with it.
 from __future__ import annotations
 
 import dataclasses
-import functools
 import sys
 import time
 from dataclasses import dataclass, field
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 
 from ..checks import integer, multiple_of
 from ..costs.collision import standard_normal_table
 from ..distance_grid import build_distance_grid
-from ..packing import unpack
 from ..params import params_as_arrays
 from .. import checks
+from ..methods.base import COST_NAMES, INFO_NAMES, BuildContext, Observation
+from ..methods.registry import build_controllers
 from ..planner import check_dtype
 from ..scenario_checks import check_run_size
-from ..situation import Obstacle, OwnShip, Situation
 from ..scenario import Scenario, route_geometry
-from . import colav as colav_mod
 from . import metrics as metrics_mod
-from .colav import COST_NAMES, INFO_NAMES, POINT_HULL_M  # noqa: F401  (COST_NAMES: re-exported for readers of the results)
 from .tracker import TrackerBank
 from . import vessel3dof
 from .vessel import extend_route, kinematic_step, leg_speed, los_course, nominal_speed, pad_routes
 
 BATCH_MODES = ("auto", "vmap", "loop")
-
-
-def velocity_state(xs) -> np.ndarray:
-    """A true state (x, y, χ, U) as an obstacle estimate ``[x, y, V_x, V_y]``."""
-    return np.array([xs[0], xs[1], xs[3] * np.cos(xs[2]), xs[3] * np.sin(xs[2])])
-
-
-def route_distance(p, route) -> float:
-    """Distance [m] from point ``p [2]`` to the polyline ``route [m, 2]`` (the cross-track distance the route
-    exchange's supervisor compares with ``mpc.informed.xtd_threshold``)."""
-    p, route = np.asarray(p, float), np.asarray(route, float)
-    a, b = route[:-1], route[1:]
-    ab = b - a
-    L2 = np.einsum("ij,ij->i", ab, ab)
-    u = np.clip(np.einsum("ij,ij->i", p - a, ab) / np.where(L2 > 0, L2, 1.0), 0.0, 1.0)
-    return float(np.min(np.hypot(*(a + u[:, None] * ab - p).T)))
 
 
 @dataclass
@@ -264,9 +244,11 @@ class _ClosedLoop:
                         if self.motion3 else None)
 
         dtype = np.dtype(config.dtype)
-        # which controller runs which ship (colav.py); the PSB-MPC group, if any, gets the solver's inputs
-        self.colav = colav_mod.build(scenario, mode, params_as_arrays(mpc.params, dtype),
-                                     standard_normal_table(key, config, dtype), key=key)
+        # which controller runs which ship (the registry); the grid-search methods get the solver's inputs
+        context = BuildContext(mode=mode, params=params_as_arrays(mpc.params, dtype),
+                               samples=standard_normal_table(key, config, dtype), key=key)
+        self.colav = build_controllers(scenario, context)
+        self.colav.init(runs)
         self.controlled = self.colav.controlled
         self.grid, self.grid_bounds = None, None
         region, self.reach = grid_region(scenario, [s.waypoints for s in ships])
@@ -309,55 +291,19 @@ class _ClosedLoop:
         pos_var, vel_var = sensor.colav_target_cov
         self.true_cov = np.diag([pos_var, pos_var, vel_var, vel_var])
 
-    def situation(self, r: int, i: int, k: int, n_ps: int | None = None, informed: bool = False) -> Situation:
-        """What ship ``i`` of run ``r`` plans with at step ``k``: its remaining route from the active segment,
-        the others through the own-ship's tracks (ship 0) or as true states with a small covariance, predicted
-        with ``n_ps`` scenarios each (None: ``mpc.n_ps``; 1: straight lines).  ``informed`` (seed 002): the
-        others' true states (the exchanged AIS data; no tracker), one scenario each, along the route a ship shared
-        (:meth:`shared_route`) while it is within ``mpc.informed.xtd_threshold`` of it, else a straight line,
-        with the Rule-18 role it shared."""
-        s = self.ships[i]
-        z = self.seg[r, i]
-        U_d = float(leg_speed(s, z)) if s.leg_speeds is not None else nominal_speed(s, self.t[k])
-        own = OwnShip(state=self.states[r, i, k], waypoints=self.routes_ext[i, z: self.n_wp[i]],
-                      U_d=U_d, length=s.length, width=s.width)
-        if informed:
-            return Situation(own, tuple(self._informed_obstacle(r, i, j, k) for j in range(len(self.ships))
-                                        if j != i), self.sc.polygons)
-        obstacles = []
-        for j, o in enumerate(self.ships):
-            if j == i:
-                continue
-            if i == 0:
-                est, cov = self.track_x[r, j - 1, k], self.track_P[r, j - 1, k]
-            else:
-                xs = self.states[r, j, k]
-                est = velocity_state(xs)
-                cov = self.true_cov
-            # a point target (length_m: 0) enters with a negligible hull: the planner needs a positive size
-            obstacles.append(Obstacle(state=est, cov=cov, length=max(o.length, POINT_HULL_M),
-                                      width=max(o.width, POINT_HULL_M),
-                                      n_ps=self.sc.mpc.n_ps if n_ps is None else n_ps))
-        return Situation(own, tuple(obstacles), self.sc.polygons)
-
-    def _informed_obstacle(self, r: int, i: int, j: int, k: int) -> Obstacle:
-        """Ship ``j`` as planner ``i`` of run ``r`` sees it under ``informed_sbmpc``: the own-ship through its
-        tracks (like every own-ship method here), a target planner through true states; along its shared route
-        while within the XTD threshold of it (measured from the true position), else a straight line."""
-        o, xs = self.ships[j], self.states[r, j, k]
-        if i == 0:
-            est, cov = self.track_x[r, j - 1, k], self.track_P[r, j - 1, k]
-        else:
-            est = velocity_state(xs)
-            cov = self.true_cov
-        route = self.shared_route(r, j) if self.sc.mpc.informed.route_exchange else None
-        legs = self.shared_leg_speeds(r, j) if route is not None else None
-        if route is not None and route_distance(xs[:2], route) > self.sc.mpc.informed.xtd_threshold:
-            route = legs = None                               # the XTD supervisor: off its plan, straight line
-        role_known = self.received_seg[r, j] >= 0
-        return Obstacle(state=est, cov=cov, length=max(o.length, POINT_HULL_M),
-                        width=max(o.width, POINT_HULL_M), n_ps=1, waypoints=route, leg_speeds=legs,
-                        rule18=bool(role_known and o.rule18_role != "pdv"))
+    def observe(self, k: int, keep=None) -> Observation:
+        """What the controllers see at step ``k`` (copies: a controller cannot change the simulation); ``keep``:
+        the ``(run, ship)`` whose full evaluation is wanted for the snapshot plot."""
+        sharing = any(s.shares_route for s in self.ships)
+        shared = tuple(tuple((self.shared_route(r, j), self.shared_leg_speeds(r, j))
+                             if sharing and self.received_seg[r, j] >= 0 else None
+                             for j in range(len(self.ships))) for r in range(self.R))
+        return Observation(
+            scenario=self.sc, t=float(self.t[k]), states=self.states[:, :, k].copy(),
+            tracks=self.track_x[:, :, k].copy(), track_covs=self.track_P[:, :, k].copy(),
+            offsets=np.stack([self.u_c, self.chi_off], axis=-1), segments=self.seg.copy(),
+            routes=self.routes_ext, route_len=self.n_wp, speeds=self.nominal(k), shared=shared,
+            target_cov=self.true_cov, grid=self.grid, keep=keep)
 
     def measure(self, k: int) -> None:
         """Noisy target positions into the tracks (every sensor period); record the tracks of step ``k``."""
@@ -409,13 +355,14 @@ class _ClosedLoop:
         return leg_speed(ship, np.arange(z, z + len(route) - 1))
 
     def plan(self, k: int) -> None:
-        """One MPC update of every ship with collision avoidance in every run (:mod:`psbmpc_jax.sim.colav`);
-        apply what is due now."""
+        """One MPC update of every ship with collision avoidance in every run (every controller decides on the
+        same observation); apply what is due now."""
         self.exchange(k)
         m = k // self.mpc_every
         keep_job = (self.snapshot_run, 0) if self.snap_pending else None
+        obs = self.observe(k, keep_job)
         t0 = time.perf_counter()
-        decisions = self.colav.update(self, k, keep_job)
+        decisions = self.colav.decide(obs)
         wall = time.perf_counter() - t0
         n_jobs = sum(len(d.jobs) for d in decisions)
         self.calls.append({"t_s": float(self.t[k]), "solves": n_jobs,
@@ -442,10 +389,10 @@ class _ClosedLoop:
                     self.sequences.pop(i, None)
                 else:
                     self.sequences[i] = (d.sequences[rows], float(d.seq_dt), float(self.t[k]))
-            if d.kept is not None:
-                kept = d.kept
+            if d.snapshot is not None:
+                kept = d.snapshot
         if kept is not None:
-            self._keep_snapshot(kept, k, wall)
+            self._keep_snapshot(kept, k)
 
     def _apply_sequences(self, k: int) -> None:
         """The row of each ship's per-step sequence that is due at step ``k`` (the last row after its end)."""
@@ -453,13 +400,12 @@ class _ClosedLoop:
             j = min(int(np.floor((self.t[k] - t_update) / step + 1e-9)), seq.shape[1] - 1)
             self.u_c[:, i], self.chi_off[:, i] = seq[:, j, 0], seq[:, j, 1]
 
-    def _keep_snapshot(self, ev, k: int, wall: float) -> None:
-        """Keep the snapshot run's own-ship solve in full: the first one, replaced by the first that manoeuvres."""
+    def _keep_snapshot(self, res, k: int) -> None:
+        """Keep the snapshot run's own-ship solve in full (``res``: a :class:`~psbmpc_jax.packing.PlanResult`):
+        the first one, replaced by the first that manoeuvres."""
         r = self.snapshot_run
         manoeuvring = bool(self.u_c[r, 0] != 1.0 or self.chi_off[r, 0] != 0.0)
         if self.snapshot is None or manoeuvring:
-            res = unpack(ev, self.situation(r, 0, k), self.sc.mpc.behaviours, wall,
-                         per_polygon=self.sc.mpc.config.grounding_mode == "exact", names=COST_NAMES)
             self.snapshot = {"t_s": float(self.t[k]), "run": r, "best_index": res.best_index,
                              "own_trajectories": res.own_trajectories, "total_cost": res.costs["total"],
                              "obstacle_trajectories": res.obstacle_trajectories, "manoeuvring": manoeuvring}
@@ -484,7 +430,7 @@ class _ClosedLoop:
 
     def run(self, progress: bool) -> SimulationResult:
         label = f"{self.sc.name} ({self.R} run{'s' if self.R != 1 else ''})"
-        planning = bool(self.colav.groups)
+        planning = bool(self.colav.controllers)
         bar = (_Progress(len(self.solve_steps), label, progress) if planning
                else _Progress(self.K, label, progress, unit="steps", first_compiles=False))
         try:
@@ -504,9 +450,7 @@ class _ClosedLoop:
             scenario=self.sc, t=self.t, states=self.states, track_x=self.track_x, track_P=self.track_P,
             solve_t=self.t[self.solve_steps], offsets=self.offsets, best_costs=self.best_costs, calls=self.calls,
             snapshot=self.snapshot, metrics=[], solve_wall=self.solve_wall, method=self.colav.method,
-            colav_info=self.colav_info
-            if self.colav.method in ("psbmpc_refine", "smooth_sbmpc", "sbmpc_init", "two_level")
-            else None)
+            colav_info=self.colav_info if self.colav.own is not None and self.colav.own.diagnostics else None)
 
     def clip_exceeded(self) -> bool | None:
         """Whether a prediction can have reached beyond the land kept by ``chart.clip_m``: true when a ship came

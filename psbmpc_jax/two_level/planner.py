@@ -23,7 +23,7 @@ import numpy as np
 from ..behaviours import enumerate_behaviours_deg
 from ..costs.sbmpc import SbmpcHazardTerm
 from ..costs.zeta import ZETA_SHAPES, SbmpcZetaTerm
-from ..methods import SbmpcSettings, manoeuvring_term
+from ..methods.sbmpc_family import SbmpcSettings, manoeuvring_term
 from ..numerics import wrap_angle_host
 from ..packing import Capacities, pack_world
 from ..params import PlannerConfig
@@ -54,7 +54,7 @@ class TwoLevelSettings:
         r_accept: leg switching radius R_a [m].
         beta, d_critical, prediction_compare: the targets' ground-avoiding prediction (eq. 2).
         eta1, eta2, d_close, zeta_d_safe, zeta_shape: ζ of eq. (15) (``zeta_shape`` "printed" or "psbmpc").
-        sbmpc: the SB-MPC's collision/COLREGS/Γ tuning (:class:`~psbmpc_jax.methods.SbmpcSettings`).
+        sbmpc: the SB-MPC's collision/COLREGS/Γ tuning (:class:`~psbmpc_jax.methods.sbmpc_family.SbmpcSettings`).
         nominal: the SB-MPC's nominal references: ``"plan"`` (C-001-7) or ``"hold"`` (the flag).
         plan_stride: every how many MPC steps a planned position becomes a nominal waypoint.
         sbmpc_every: the SB-MPC solves at every ``sbmpc_every``-th update (the first included) and its

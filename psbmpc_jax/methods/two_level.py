@@ -1,10 +1,10 @@
-"""The own-ship under ``two_level`` (seed 001) in the closed-loop simulator: one
+"""The ``two_level`` controller (Mahipala & Johansen 2023's two-level MPC): one
 :class:`~psbmpc_jax.two_level.planner.TwoLevelPlanner` for the scenario, one planner memory per run.
 
 The planner sees the own-ship's true state and the targets through the own-ship's tracks (as the smooth
 methods: position, course ``atan2(V_east, V_north)``, speed ``|V|``).  It commands an absolute course and
 speed (χ_c = χ_d + χ_m, U_c = U_d·U_m), applied as they are instead of on top of LOS guidance
-(``Decisions.commands``); the recorded offsets are the SB-MPC's (U_m, χ_m), the per-update diagnostics the
+(``Decision.commands``); the recorded offsets are the SB-MPC's (U_m, χ_m), the per-update diagnostics the
 upper level's (cost, violation, status, inner iterations).
 """
 
@@ -15,7 +15,7 @@ import time
 import numpy as np
 
 from ..params import PlannerConfig
-from .colav import COST_NAMES, INFO_NAMES, Decisions, tracked_targets
+from .base import COST_NAMES, INFO_NAMES, Decision, Observation, tracked_targets
 
 
 def two_level_settings(scenario):
@@ -41,11 +41,13 @@ def two_level_settings(scenario):
     return settings, config
 
 
-class TwoLevelGroup:
+class TwoLevelController:
     """The own-ship under ``two_level``: every run planned in turn (host loop; each update is one upper-level
     solve and one 39-behaviour grid search)."""
 
     ships = (0,)
+    uses_grid = False
+    snapshots = False
 
     def __init__(self, scenario):
         from ..two_level.planner import TwoLevelPlanner
@@ -60,10 +62,14 @@ class TwoLevelGroup:
             settings=settings, config=config, length=max(float(own.length), 1e-6), width=max(float(own.width), 1e-6))
         self.states: dict[int, object] = {}
 
-    def update(self, loop, k: int, keep_job) -> Decisions:
-        R = loop.R
-        states = loop.states[:, 0, k]                                           # [R, 4] true own-ship state
-        targets = tracked_targets(loop.track_x[:, :, k])                        # [R, I, 4]
+    def init(self, n_runs: int) -> None:
+        """Forget every run's planner memory."""
+        self.states = {}
+
+    def decide(self, obs: Observation) -> Decision:
+        R = obs.n_runs
+        states = obs.states[:, 0]                                               # [R, 4] true own-ship state
+        targets = tracked_targets(obs.tracks)                                   # [R, I, 4]
         first, commands, walls = np.zeros((R, 2)), np.zeros((R, 2)), np.zeros(R)
         info = {name: np.full(R, np.nan) for name in INFO_NAMES}
         t_all, calls = time.perf_counter(), 0
@@ -79,8 +85,8 @@ class TwoLevelGroup:
             info["status"][r] = float(plan.path.status)
             info["iterations"][r] = float(plan.path.inner)
         wall = time.perf_counter() - t_all
-        return Decisions(jobs=[(r, 0) for r in range(R)], first=first, costs=np.full((R, len(COST_NAMES)), np.nan),
-                         walls=walls, device_calls=calls, wall=wall, info=info, commands=commands)
+        return Decision(jobs=[(r, 0) for r in range(R)], first=first, costs=np.full((R, len(COST_NAMES)), np.nan),
+                        walls=walls, device_calls=calls, wall=wall, info=info, commands=commands)
 
 
-__all__ = ["TwoLevelGroup", "two_level_settings"]
+__all__ = ["TwoLevelController", "two_level_settings"]

@@ -1,0 +1,254 @@
+"""The built-in methods, registered when :mod:`psbmpc_jax.methods` is imported.
+
+======================  =======================================================================================
+``psbmpc``              PSB-MPC grid search over the behaviour table (Tengesdal et al. 2022); the first manoeuvre
+                        of the chosen behaviour is held until the next update
+``psbmpc_refine``       ``psbmpc`` wrapped by the gradient refinement (:class:`Refined`)
+``sbmpc``               the same grid search with the original SB-MPC cost (Johansen et al. 2016), straight-line
+                        targets (:func:`psbmpc_jax.methods.sbmpc_family.sbmpc_terms`)
+``psbmpc_2020``         the same grid search with the probabilistic cost of Tengesdal, Brekke & Johansen 2020
+                        (:func:`psbmpc_jax.methods.sbmpc_family.psbmpc2020_terms`)
+``informed_sbmpc``      the same grid search with the Informed SB-MPC cost (Akdağ, Fossen & Johansen 2022): route
+                        exchange, Rule 18, bearing-shaped d_safe; the planner rests beyond ``d_init``
+``smooth_sbmpc``        Smooth-SBMPC: initialisation stage + gradient DOCP (:mod:`psbmpc_jax.methods.smooth`)
+``sbmpc_init``          Smooth-SBMPC's initialisation stage alone
+``two_level``           the two-level MPC: path-following NMPC + SB-MPC with grounding cost
+                        (:mod:`psbmpc_jax.methods.two_level`), absolute course/speed commands
+======================  =======================================================================================
+
+Each class builds its controller in :meth:`build` (the heavy imports happen there, not at import) and says in
+:meth:`record` which settings it ran with.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import asdict
+
+from .base import BuildContext, Method
+from .informed_settings import InformedSpec, parse_informed
+from .refine_settings import RefineSpec, parse_refine
+from .registry import SectionContext, register, register_section
+from .sbmpc_family import SbmpcSettings, parse_sbmpc
+from .smooth_settings import SMOOTH_METHODS, FisSpec, SmoothSpec, SolverSpec, parse_fis, parse_smooth, parse_solver
+from .two_level_settings import TwoLevelSpec, parse_two_level
+
+
+def resolved(obj):
+    """A settings object as plain values: a dataclass (nested ones too) as a dict, a mapping's values and a
+    sequence's items likewise, a plain object with attributes as ``vars``; anything else as it is."""
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        return {f.name: resolved(getattr(obj, f.name)) for f in dataclasses.fields(obj)}
+    if isinstance(obj, dict):
+        return {str(k): resolved(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [resolved(v) for v in obj]
+    if hasattr(obj, "__dict__") and not callable(obj):
+        return {k: resolved(v) for k, v in vars(obj).items() if not k.startswith("_")}
+    return obj
+
+
+def _sbmpc_family_grounding(scenario) -> bool:
+    """The grounding term only where there is land to ground on (``mpc.sbmpc.grounding`` and polygons)."""
+    return bool(scenario.mpc.sbmpc.grounding and scenario.polygons)
+
+
+class Psbmpc(Method):
+    """PSB-MPC: the grid search with the default cost terms and ``mpc.n_ps`` prediction scenarios."""
+
+    name = "psbmpc"
+    description = "PSB-MPC grid search (Tengesdal et al. 2022)"
+
+    def build(self, scenario, ships, context: BuildContext):
+        from .grid import GridController
+
+        return GridController(ships, context.mode, scenario.mpc, context.params, context.samples, method=self.name)
+
+    def record(self, scenario) -> dict:
+        m = scenario.mpc      # its weights and solver configuration are mpc.params / mpc.config (recorded apart)
+        return {"preset": m.preset, "n_ps": m.n_ps, "n_cbs": len(m.behaviours)}
+
+    def describe(self, scenario) -> str:
+        m = scenario.mpc
+        return f"preset `{m.preset}`, {len(m.behaviours)} behaviours, n_ps {m.n_ps}"
+
+
+class Refined(Method):
+    """A grid-search method wrapped by the gradient refinement (:func:`psbmpc_jax.refine.refine`, settings
+    ``mpc.refine`` / ``mpc.solver`` / ``mpc.fis``): the wrapped method's controller, whose solves are refined
+    after the search and applied as per-step controls."""
+
+    diagnostics = True
+
+    def __init__(self, base: Method, name: str, description: str):
+        self.base, self.name, self.description = base, name, description
+
+    def build(self, scenario, ships, context: BuildContext):
+        controller = self.base.build(scenario, ships, context)
+        controller.enable_refinement()
+        controller.method = self.name
+        return controller
+
+    def record(self, scenario) -> dict:
+        from .grid import refine_function, refine_settings
+
+        _, settings_cls = refine_function()
+        m = scenario.mpc
+        return {**self.base.record(scenario), "refine": asdict(m.refine), "solver": m.solver.given(),
+                "resolved": resolved(refine_settings(m, settings_cls))}
+
+    def describe(self, scenario) -> str:
+        return self.base.describe(scenario)
+
+
+class Sbmpc(Method):
+    """The original SB-MPC cost on the grid search, straight-line targets (``mpc.sbmpc``)."""
+
+    name = "sbmpc"
+    description = "original SB-MPC (Johansen et al. 2016), straight-line targets"
+
+    def terms(self, scenario):
+        from .sbmpc_family import sbmpc_terms
+
+        return sbmpc_terms(scenario.mpc.sbmpc, with_grounding=_sbmpc_family_grounding(scenario))
+
+    def build(self, scenario, ships, context: BuildContext):
+        from .grid import GridController
+
+        return GridController(ships, context.mode, scenario.mpc, context.params, context.samples, method=self.name,
+                              n_ps=1, terms=self.terms(scenario))
+
+    def record(self, scenario) -> dict:
+        return {"sbmpc": asdict(scenario.mpc.sbmpc), "grounding_term": _sbmpc_family_grounding(scenario)}
+
+    def describe(self, scenario) -> str:
+        return f"{len(scenario.mpc.behaviours)} behaviours, straight-line targets"
+
+
+class Psbmpc2020(Sbmpc):
+    """The probabilistic SB-MPC of 2020 (Monte-Carlo CPA probability + scalar Kalman filter), ``mpc.sbmpc``."""
+
+    name = "psbmpc_2020"
+    description = "PSB-MPC of Tengesdal, Brekke & Johansen 2020 (MCS + scalar KF collision probability)"
+
+    def terms(self, scenario):
+        from .sbmpc_family import psbmpc2020_terms
+
+        return psbmpc2020_terms(scenario.mpc.sbmpc, with_grounding=_sbmpc_family_grounding(scenario))
+
+
+class InformedSbmpc(Method):
+    """Informed SB-MPC (``mpc.informed``): route exchange, Rule 18, bearing-shaped d_safe."""
+
+    name = "informed_sbmpc"
+    description = "Informed SB-MPC (Akdağ, Fossen & Johansen 2022): route exchange, Rule 18, shaped d_safe"
+
+    def build(self, scenario, ships, context: BuildContext):
+        from .grid import GridController
+        from .sbmpc_family import informed_terms
+
+        inf = scenario.mpc.informed
+        return GridController(ships, context.mode, scenario.mpc, context.params, context.samples,
+                              terms=informed_terms(inf), n_ps=1, method=self.name, informed=True, d_init=inf.d_init)
+
+    def record(self, scenario) -> dict:
+        from .sbmpc_family import informed_terms
+
+        term, manoeuvring = informed_terms(scenario.mpc.informed)
+        return {"informed": asdict(scenario.mpc.informed), "term": resolved(term), "manoeuvring": resolved(manoeuvring)}
+
+    def describe(self, scenario) -> str:
+        return f"{len(scenario.mpc.behaviours)} behaviours, d_init {scenario.mpc.informed.d_init:g} m"
+
+
+class SmoothSbmpc(Method):
+    """Smooth-SBMPC (``mpc.smooth``, ``mpc.fis``, ``mpc.solver``), the own-ship only."""
+
+    name = "smooth_sbmpc"
+    description = "Smooth-SBMPC: initialisation stage + DOCP"
+    own_ship_only = True
+    diagnostics = True
+
+    def build(self, scenario, ships, context: BuildContext):
+        from .smooth import SmoothController
+
+        return SmoothController(scenario)
+
+    def record(self, scenario) -> dict:
+        from .smooth import smooth_arguments
+
+        m = scenario.mpc
+        return {"smooth": asdict(m.smooth), "fis": asdict(m.fis), "solver": m.solver.given(),
+                "resolved": resolved(smooth_arguments(scenario))}
+
+    def describe(self, scenario) -> str:
+        sm = scenario.mpc.smooth
+        return f"T_init {sm.T_init:g} s, T_mpc {sm.T_mpc:g} s, T_s {sm.dt:g} s"
+
+
+class SbmpcInit(SmoothSbmpc):
+    """Smooth-SBMPC's initialisation stage alone (the original SB-MPC of that paper's comparison)."""
+
+    name = "sbmpc_init"
+    description = "Smooth-SBMPC's initialisation stage alone"
+
+
+class TwoLevel(Method):
+    """The two-level MPC (``mpc.two_level``, ``mpc.sbmpc``), the own-ship only."""
+
+    name = "two_level"
+    description = "two-level MPC: path-following NMPC + SB-MPC with grounding cost"
+    own_ship_only = True
+    diagnostics = True
+
+    def build(self, scenario, ships, context: BuildContext):
+        from .two_level import TwoLevelController
+
+        return TwoLevelController(scenario)
+
+    def record(self, scenario) -> dict:
+        from .two_level import two_level_settings
+
+        settings, config = two_level_settings(scenario)
+        m = scenario.mpc
+        return {"two_level": asdict(m.two_level), "sbmpc": asdict(m.sbmpc),
+                "resolved": {"settings": resolved(settings), "config": resolved(config)}}
+
+    def describe(self, scenario) -> str:
+        return f"path MPC N_p {scenario.mpc.two_level.N_p}, SB-MPC {len(scenario.mpc.behaviours)} behaviours"
+
+
+def _smooth_section(d, ctx: SectionContext) -> SmoothSpec:
+    from ..checks import multiple_of
+
+    smooth = parse_smooth(d)
+    if ctx.method in SMOOTH_METHODS:
+        multiple_of(ctx.period, smooth.dt, "mpc.update_period_s",
+                    "mpc.smooth.dt_s" if "dt_s" in (ctx.mpc.get("smooth") or {}) else "mpc.smooth.dt_s (default)")
+    return smooth
+
+
+def _refine_section(d, ctx: SectionContext) -> RefineSpec:
+    """``mpc.refine``, with ``mpc.fis.e_cl_m`` / ``n_y`` when the file gives them (the refinement's FIS)."""
+    refine = parse_refine(d, ctx.config)
+    fis, given = ctx.parsed["fis"], ctx.mpc.get("fis") or {}
+    return dataclasses.replace(refine, fis_e_cl=fis.e_cl if "e_cl_m" in given else None,
+                               fis_n_y=fis.n_y if "n_y" in given else None)
+
+
+# the sections of mpc each built-in method reads (parsed in this order, whatever the method)
+register_section("smooth", _smooth_section, SmoothSpec)
+register_section("fis", lambda d, ctx: parse_fis(d), FisSpec)
+register_section("solver", lambda d, ctx: parse_solver(d), SolverSpec)
+register_section("refine", _refine_section, RefineSpec, after_config=True)
+register_section("sbmpc", lambda d, ctx: parse_sbmpc(d), SbmpcSettings, after_config=True)
+register_section("informed", lambda d, ctx: parse_informed(d), InformedSpec, after_config=True)
+register_section("two_level", lambda d, ctx: parse_two_level(d), TwoLevelSpec, after_config=True)
+
+PSBMPC = Psbmpc()
+for _method in (PSBMPC, Refined(PSBMPC, "psbmpc_refine", "PSB-MPC grid search + gradient refinement"), Sbmpc(),
+                Psbmpc2020(), InformedSbmpc(), SmoothSbmpc(), SbmpcInit(), TwoLevel()):
+    register(_method)
+
+__all__ = ["Psbmpc", "Refined", "Sbmpc", "Psbmpc2020", "InformedSbmpc", "SmoothSbmpc", "SbmpcInit", "TwoLevel",
+           "PSBMPC"]

@@ -1,0 +1,265 @@
+"""Loading a scenario: :func:`scenario_from_dict` (a parsed mapping), :func:`load_scenario` (a ``.yaml`` path or a
+built-in name), :func:`builtin_scenarios`, :func:`estimator_key`."""
+
+from __future__ import annotations
+import copy
+import os
+import pathlib
+import numpy as np
+import shapely
+import shapely.validation
+from shapely.geometry import Polygon
+from .. import scenario_checks as limits
+from ..charts import count_vertices, to_ring_sets
+from ..checks import integer, multiple_of
+
+from ..config import as_mapping, as_number, as_string, check_keys, yaml_load
+from .mpc import method_name, read_evaluation, read_mpc
+from .schema import SCENARIO_DIR, Scenario
+from .ships import read_ship
+from .world import chart_source, clip_polygons, read_origin_latlon, read_sensor
+
+
+_TOP_KEYS = ("name", "description", "simulation", "monte_carlo", "collision_distance_m", "evaluation", "mpc", "sensor",
+             "chart",
+             "origin_latlon", "own_ship", "targets")
+
+
+_TOP_REQUIRED = ("name", "simulation", "mpc", "own_ship")
+
+
+_SIM_KEYS = ("dt_s", "duration_s")
+
+
+_MC_KEYS = ("runs", "seed")
+
+
+# ---------------------------------------------------------------------------------------------- sections
+def _simulation(d) -> tuple[float, float]:
+    d = as_mapping(d, "simulation")
+    check_keys(d, _SIM_KEYS, "simulation", required=_SIM_KEYS)
+    dt = as_number(d["dt_s"], "simulation.dt_s", gt=0)
+    duration = as_number(d["duration_s"], "simulation.duration_s", gt=0, le=limits.MAX_DURATION_S)
+    if dt > duration:
+        raise ValueError(f"simulation.dt_s ({dt:g}) must be <= simulation.duration_s ({duration:g})")
+    if duration / dt > limits.MAX_STEPS * (1 + 1e-9):
+        raise ValueError(f"simulation.duration_s / simulation.dt_s = {duration / dt:.6g} steps; at most "
+                         f"{limits.MAX_STEPS} allowed (a larger dt_s or a shorter duration_s)")
+    multiple_of(duration, dt, "simulation.duration_s", "simulation.dt_s")
+    return dt, duration
+
+
+def _monte_carlo(d) -> tuple[int, int]:
+    d = as_mapping(d, "monte_carlo")
+    check_keys(d, _MC_KEYS, "monte_carlo")
+    runs = integer(d.get("runs", 20), "monte_carlo.runs", ge=1, le=limits.MAX_RUNS)
+    seed = integer(d.get("seed", 0), "monte_carlo.seed", ge=0, le=limits.MAX_SEED)
+    return runs, seed
+
+
+# ---------------------------------------------------------------------------------------------- public API
+def scenario_from_dict(data: dict, base_dir=None, source: str | None = None, *, land_checks: str = "warn",
+                       method: str | None = None) -> Scenario:
+    """Validate a scenario mapping (the parsed YAML, schema in ``docs/scenarios.md``) and build a
+    :class:`Scenario` in SI units, radians and the local NED frame.
+
+    Args:
+        data: the mapping; not modified.
+        base_dir: folder that ``chart.file`` is relative to (default: the current directory).
+        source: recorded in ``Scenario.source`` (the file path).
+        land_checks: what to do with the geometry problems of
+            :func:`psbmpc_jax.scenario_checks.land_issues` (a ship starting on land, a waypoint on land, a route
+            leg through land, two ships starting closer than the collision distance): ``"error"`` raises
+            ``ValueError`` (what :func:`load_scenario` does), ``"warn"`` (default here) issues a
+            :class:`~psbmpc_jax.scenario_checks.ScenarioWarning` per problem, ``"off"`` skips the checks.
+        method: overrides ``mpc.method`` (one of :data:`METHODS`; ``psbmpc-jax run --method``) before the
+            mapping is validated, so the file is checked as if it said so.
+
+    Raises:
+        ValueError: unknown or missing keys, wrong types, non-finite numbers, values out of range, unit
+            alternatives given twice, times that are not multiples of ``simulation.dt_s``, bad overrides, bad
+            charts, sizes above the limits of :mod:`psbmpc_jax.scenario_checks` -- the message names the key and
+            says what is allowed.
+    """
+    if land_checks not in ("error", "warn", "off"):
+        raise ValueError(f"land_checks must be 'error', 'warn' or 'off', got {land_checks!r}")
+    data = copy.deepcopy(as_mapping(data, "the scenario"))
+    check_keys(data, _TOP_KEYS, "the scenario (top level)", required=_TOP_REQUIRED)
+    if method is not None:
+        method_name(method, "method (the override of mpc.method)")
+        data["mpc"] = {**as_mapping(data["mpc"], "mpc"), "method": method}
+    name = as_string(data["name"], "name")
+    description = data.get("description", "")
+    if not isinstance(description, str):
+        raise ValueError(f"description must be a string, got {description!r}")
+    dt, duration = _simulation(data["simulation"])
+    runs, seed = _monte_carlo(data.get("monte_carlo", {}) or {})
+    mpc = read_mpc(data["mpc"], dt)
+    sensor = read_sensor(data.get("sensor", {}) or {}, dt)
+    coll = None
+    if "collision_distance_m" in data:
+        coll = as_number(data["collision_distance_m"], "collision_distance_m", gt=0)
+    origin_ll = read_origin_latlon(data["origin_latlon"]) if "origin_latlon" in data else None
+    evaluation = read_evaluation(data.get("evaluation", {}) or {})
+
+    chart = inline = None
+    info = dict(source=None, origin=None, crs=None)
+    rdp_eps = clip = None
+    if "chart" in data:
+        chart, inline, info, rdp_eps, clip = chart_source(data["chart"], base_dir, origin_ll)
+    info["origin_latlon"] = origin_ll
+
+    tl = data.get("targets", [])
+    if tl is None:
+        tl = []
+    if not isinstance(tl, (list, tuple)):
+        raise ValueError(f"targets must be a list of ships, got {type(tl).__name__}")
+    if len(tl) + 1 > limits.MAX_SHIPS:
+        raise ValueError(f"targets: {len(tl)} target ships; at most {limits.MAX_SHIPS - 1} allowed (plus the "
+                         f"own-ship)")
+    n_steps = int(round(duration / dt))
+    mem = limits.simulation_memory_bytes(n_steps, runs, len(tl) + 1)
+    if mem > limits.MAX_SIM_MEMORY_BYTES:
+        raise ValueError(f"monte_carlo.runs ({runs}) x {n_steps + 1} steps (simulation.duration_s / dt_s) x "
+                         f"{len(tl) + 1} ships need about {mem / 1024 ** 3:.1f} GiB of simulator memory; at most "
+                         f"{limits.MAX_SIM_MEMORY_BYTES / 1024 ** 3:.0f} GiB allowed -- fewer runs, a shorter "
+                         f"duration_s or a larger dt_s")
+
+    ctx = dict(chart=chart, duration=duration, params=mpc.params, origin_latlon=origin_ll, method=mpc.method)
+    own = read_ship(data["own_ship"], "own_ship", own=True, ctx=ctx)
+    targets = tuple(read_ship(t, f"targets[{i}]", own=False, ctx=ctx) for i, t in enumerate(tl))
+    seen = {own.name: "own_ship"}
+    for i, t in enumerate(targets):
+        if t.name in seen:
+            raise ValueError(f"duplicate ship name {t.name!r} ({seen[t.name]} and targets[{i}]); ship names must "
+                             f"be unique")
+        seen[t.name] = f"targets[{i}]"
+
+    # land: loaded -> RDP (builtin / file charts) -> clip about the routes -> ring sets
+    polys: list[Polygon] = list(chart.polygons) if chart is not None else list(inline or ())
+    info.update(n_polygons_loaded=len(polys), n_vertices_loaded=count_vertices(polys))
+    if chart is not None:
+        labels = [f"chart polygon {j}, feature {fid}" + (f" of layer {lay!r}" if lay else "")
+                  for j, (fid, lay) in enumerate(zip(chart.ids, chart.layers))]
+    else:
+        labels = [f"chart.polygons_m[{j}]" for j in range(len(polys))]
+    roles = [f"own-ship {own.name!r}"] + [f"target {t.name!r} (targets[{i}])" for i, t in enumerate(targets)]
+    d_coll = float(mpc.params.d_safe if coll is None else coll)
+
+    close = limits.start_distance_errors((own,) + targets, roles, d_coll)
+    if close:
+        raise ValueError(close[0] if len(close) == 1 else f"{len(close)} pairs of ships start too close: "
+                         + "; ".join(close[:5]))
+    reported: set = set()
+
+    def land_check(variant, first):
+        if land_checks == "off":
+            return
+        errors, warns = limits.land_issues((own,) + targets, roles, [variant], duration=duration,
+                                           default_routes=ctx.get("default_routes", ()), ship_pairs=first)
+        if own.allow_route_over_land:   # the file says so: the own-ship's legs over land are warned about
+            leg = f"{roles[0]}: route leg "
+            warns = warns + [m + " (allowed by own_ship.allow_route_over_land)" for m in errors if m.startswith(leg)]
+            errors = [m for m in errors if not m.startswith(leg)]
+        fresh = [m for m in errors + warns if not any(m.startswith(r) for r in reported)]
+        errors, warns = [m for m in errors if m in fresh], [m for m in warns if m in fresh]
+        reported.update(r for r in roles for m in errors + warns if m.startswith(r))
+        limits.report_land_issues(errors, warns, land_checks)
+
+    land_check(limits.LandVariant(polys, labels), True)       # before RDP: a start on land fails fast
+    if chart is not None and rdp_eps is not None:
+        from ..rdp import simplify_chart
+
+        loaded_chart = chart
+        chart = simplify_chart(chart, rdp_eps)
+        polys = list(chart.polygons)
+        info.update(n_vertices_rdp=count_vertices(polys),
+                    rdp_degenerate_kept=int(chart.report.get("rdp_degenerate_kept", 0)),
+                    rdp_holes_dropped=int(chart.report.get("rdp_holes_dropped", 0)))
+        same = len(polys) == len(loaded_chart.polygons)
+        land_check(limits.LandVariant(polys, labels if same else [f"simplified chart polygon {j}"
+                                                                  for j in range(len(polys))],
+                                      f", as simplified with rdp_eps_m = {rdp_eps:g}"), False)
+    if clip is not None:
+        polys, clip_info = clip_polygons(polys, (own,) + targets, clip)
+        info.update(clip_info)
+
+    for j, q in enumerate(polys):   # what Situation (the planner) will accept: RDP can make rings self-intersect
+        if not q.is_valid:
+            raise ValueError(f"chart: polygon {j} of the land as simplified (rdp_eps_m = {rdp_eps}) and clipped is not "
+                             f"a valid simple polygon ({shapely.validation.explain_validity(q)}); the planner refuses "
+                             f"it -- use a smaller chart.rdp_eps_m")
+    rings = tuple(tuple(np.asarray(r, dtype=float) for r in rs) for rs in to_ring_sets(polys)) if polys else ()
+    info.update(rdp_eps_m=rdp_eps, clip_m=clip, n_polygons=len(rings),
+                n_vertices=int(sum(len(r) for rs in rings for r in rs)))
+    return Scenario(name=name, description=description, own_ship=own, targets=targets, sensor=sensor, mpc=mpc,
+                    polygons=rings, chart_info=info, dt=dt, duration=duration, runs=runs, seed=seed,
+                    collision_distance=coll, source=source, evaluation=evaluation)
+
+
+def estimator_key(scenario: Scenario, seed: int | None = None):
+    """The PRNG key of the ``mc`` / ``ce`` estimators for a scenario run: ``jax.random.key(seed)`` with the
+    scenario's ``monte_carlo.seed`` (or ``seed``); ``None`` for the ``quadrature`` estimator (it draws nothing)."""
+    if scenario.mpc.config.estimator == "quadrature":
+        return None
+    import jax
+
+    seed = integer(scenario.seed if seed is None else seed, "seed", ge=0, le=limits.MAX_SEED)
+    return jax.random.key(seed)
+
+
+def builtin_scenarios() -> list[str]:
+    """Sorted names of the scenario files shipped in ``psbmpc_jax/scenarios/`` (``*.yaml``, ``*.yml``)."""
+    if not SCENARIO_DIR.is_dir():
+        return []
+    return sorted({p.stem for p in SCENARIO_DIR.iterdir() if p.suffix in (".yaml", ".yml") and p.is_file()})
+
+
+def _builtin_path(name: str) -> pathlib.Path:
+    for ext in (".yaml", ".yml"):
+        p = SCENARIO_DIR / f"{name}{ext}"
+        if p.is_file():
+            return p
+    raise ValueError(f"unknown built-in scenario {name!r}; built-in scenarios: {', '.join(builtin_scenarios())} "
+                     f"(or give the path of a .yaml / .yml file)")
+
+
+def load_scenario(path_or_name, *, land_checks: str = "error", method: str | None = None) -> Scenario:
+    """Load and validate a scenario: a path to a ``.yaml`` / ``.yml`` file, or the name of a built-in scenario
+    (:func:`builtin_scenarios`, e.g. ``"head_on"``, ``"imazu_01"``).
+
+    Everything is checked before anything is simulated or compiled, the land geometry included
+    (``land_checks="error"``: a ship starting on land, a waypoint or route leg on or through land, two ships
+    starting closer than the collision distance raise; see :func:`scenario_from_dict`).  ``method`` overrides
+    the file's ``mpc.method`` (validated as if the file said so).
+
+    Raises:
+        ValueError: unknown built-in name (the message lists them), invalid YAML or an invalid scenario.
+        FileNotFoundError: a ``.yaml`` / ``.yml`` path that does not exist.
+    """
+    if isinstance(path_or_name, os.PathLike):
+        s = os.fspath(path_or_name)
+        path_like = True
+    elif isinstance(path_or_name, str) and path_or_name.strip():
+        s = path_or_name
+        path_like = s.lower().endswith((".yaml", ".yml")) or "/" in s or os.sep in s
+    else:
+        raise ValueError(f"load_scenario needs a .yaml/.yml path or a built-in scenario name "
+                         f"({', '.join(builtin_scenarios())}), got {path_or_name!r}")
+    if path_like:
+        path = pathlib.Path(s).expanduser()
+        if path.suffix.lower() not in (".yaml", ".yml"):
+            raise ValueError(f"scenario files must end in .yaml or .yml, got {s!r}")
+        if not path.is_file():
+            raise FileNotFoundError(f"scenario file not found: {path}")
+    else:
+        path = _builtin_path(s)
+    where = str(path)
+    data = yaml_load(path.read_text(encoding="utf-8"), where)
+    if not isinstance(data, dict):
+        raise ValueError(f"{where}: a scenario file must hold a mapping at the top level, got "
+                         f"{type(data).__name__}")
+    try:
+        return scenario_from_dict(data, base_dir=path.parent, source=where, land_checks=land_checks, method=method)
+    except ValueError as exc:
+        raise ValueError(f"{where}: {exc}") from None
