@@ -7,6 +7,8 @@ import math
 
 import numpy as np
 
+from ..numerics import wrap_angle_host
+
 
 _ELLIPSOIDS = {"WGS84": (6378137.0, 1.0 / 298.257223563), "ETRS89": (6378137.0, 1.0 / 298.257222101)}
 _K0, _FALSE_E, _FALSE_N_SOUTH = 0.9996, 500000.0, 10000000.0
@@ -67,7 +69,7 @@ def tm_forward(lat, lon, lon0: float, e: float, alpha):
     """Transverse Mercator (Krueger n^6, Karney 2011): lat/lon [deg] -> the normalised (xi, eta) about the
     central meridian ``lon0`` [deg]; multiply by k0 a A for metres."""
     lam = np.radians(np.asarray(lon, float)) - math.radians(lon0)
-    lam = (lam + np.pi) % (2 * np.pi) - np.pi
+    lam = wrap_angle_host(lam)
     tau = np.tan(np.radians(np.asarray(lat, float)))
     sig = np.sinh(e * np.arctanh(e * tau / np.sqrt(1.0 + tau ** 2)))
     taup = tau * np.sqrt(1.0 + sig ** 2) - sig * np.sqrt(1.0 + tau ** 2)
