@@ -1,39 +1,56 @@
-"""Small numerical helpers shared by the device kernels (pure jax.numpy), and the host (NumPy float64) twin
-of :func:`wrap_angle` that the closed-loop simulator steps and measures with."""
+"""Small numerical helpers shared by the device kernels (pure jax.numpy), and their host (NumPy float64) twins.
+
+The one angle wrap of the package: :func:`wrap_angle` on the device, :func:`wrap_angle_host` on the host (the
+closed-loop simulator, the metrics, the chart projection, the float64 oracles, the evaluation tool).  JAX is
+imported inside the device helpers, not at the top: modules that must not import JAX (the chart and scenario
+loaders, the oracles, the evaluation tool) use the host helpers from here."""
 
 from __future__ import annotations
 
 import math
 
-import jax.numpy as jnp
 import numpy as np
-from jax.scipy.special import ndtr
 
 TWO_PI = 2.0 * math.pi
 
 
 def wrap_angle(a):
-    """Wrap angles to [-pi, pi)."""
+    """Wrap angles to [-pi, pi) (jax.numpy, traceable; derivative 1): ``a - 2 pi floor((a + pi) / 2 pi)``."""
+    import jax.numpy as jnp
+
     return a - TWO_PI * jnp.floor((a + math.pi) / TWO_PI)
 
 
-def wrap_angle_host(a):
-    """Wrap angles to [-pi, pi) on the host, in float64: ``(a + pi) mod 2 pi - pi``.
+def wrap_angle_host(a, *, include_pi: bool = False):
+    """Wrap angles on the host, in float64: to [-pi, pi), ``(a + pi) mod 2 pi - pi`` (both ends map to -pi);
+    with ``include_pi`` to (-pi, pi], ``pi - (pi - a) mod 2 pi`` = ``-wrap_angle_host(-a)`` (both ends map to +pi:
+    a relative bearing of exactly 180 deg stays +180 deg).
 
-    A Python float for a Python number, else a NumPy array (never a JAX array, whatever the JAX dtype
-    settings); it agrees with :func:`wrap_angle` to a few ulp (floor and mod round differently)."""
+    A Python float for a Python number, else a NumPy array or scalar (never a JAX array, whatever the JAX dtype
+    settings); it agrees with :func:`wrap_angle` to a few ulp (floor and mod round differently).  At the ends the
+    sum rounds: an input within an ulp beyond an odd multiple of pi can give the other end (+pi, resp. -pi)."""
+    if type(a) is float and not include_pi:          # the fast path (the float64 oracle's inner loops)
+        return (a + math.pi) % TWO_PI - math.pi
     if isinstance(a, (float, int)) and not isinstance(a, bool):
+        if include_pi:
+            return math.pi - (math.pi - float(a)) % TWO_PI
         return (float(a) + math.pi) % TWO_PI - math.pi
+    if include_pi:
+        return math.pi - np.mod(math.pi - np.asarray(a, dtype=float), TWO_PI)
     return np.mod(np.asarray(a, dtype=float) + math.pi, TWO_PI) - math.pi
 
 
 def normal_cdf(x):
     """Standard normal CDF."""
+    from jax.scipy.special import ndtr
+
     return ndtr(x)
 
 
 def safe_sqrt(x):
     """sqrt with a finite gradient at 0 (double-where)."""
+    import jax.numpy as jnp
+
     pos = x > 0
     return jnp.where(pos, jnp.sqrt(jnp.where(pos, x, 1.0)), 0.0)
 

@@ -33,7 +33,7 @@ from .reference_prediction import (
     obstacle_covariances,
     obstacle_scenarios,
     ownship_trajectory,
-    wrap_scalar,
+    wrap_angle,
 )
 from .situation import Situation
 
@@ -444,7 +444,7 @@ def path_cost(behaviour, last_offsets=(1.0, 0.0), params: Params = Params()) -> 
         return K_u * (1.0 - u) + (K_cp if chi < 0.0 else K_cs) * chi * chi
 
     def h(u: float, chi: float, u_prev: float, chi_prev: float) -> float:
-        delta = wrap_scalar(chi - chi_prev)
+        delta = wrap_angle(chi - chi_prev)
         return K_du * abs(u - u_prev) + (K_dp if delta < 0.0 else K_ds) * delta * delta
 
     n_m = beh.shape[0]

@@ -13,12 +13,12 @@ import math
 
 import numpy as np
 
+from .numerics import wrap_angle_host as wrap_angle
 from .params import Params, PlannerConfig
 from .situation import Obstacle, OwnShip
 
 __all__ = [
     "wrap_angle",
-    "wrap_scalar",
     "as_behaviour",
     "los_rollout",
     "maneuver_start_steps",
@@ -29,21 +29,6 @@ __all__ = [
     "ou_covariance",
     "obstacle_covariances",
 ]
-
-_TWO_PI = 2.0 * math.pi
-
-
-def wrap_angle(a):
-    """Wrap an angle (scalar or array) to [-pi, pi): ``(a + pi) mod 2 pi - pi``."""
-    if isinstance(a, (float, int)) and not isinstance(a, bool):
-        return (float(a) + math.pi) % _TWO_PI - math.pi
-    return np.mod(np.asarray(a, dtype=float) + math.pi, _TWO_PI) - math.pi
-
-
-def wrap_scalar(a: float) -> float:
-    """:func:`wrap_angle` of a Python float, without the type checks (the rollout's inner loop)."""
-    return (a + math.pi) % _TWO_PI - math.pi
-
 
 # ----------------------------------------------------------------------------------------------------------
 # §2-3 path following + kinematic model
@@ -128,7 +113,7 @@ def los_rollout(x0, waypoints, chi_offsets, U_cmd, lateral_offset, lookahead, R_
         # 3. explicit Euler, old state on the right-hand side
         x_new = x + dt * U * math.cos(chi)
         y_new = y + dt * U * math.sin(chi)
-        chi_new = wrap_scalar(chi + k_chi * wrap_scalar(chi_cmd - chi))
+        chi_new = wrap_angle(chi + k_chi * wrap_angle(chi_cmd - chi))
         u_k = u_ref[k] if leg_speeds is None else float(leg_speeds[min(z, n - 2)])
         U_new = U + k_u * (u_k - U)
         x, y, chi, U = x_new, y_new, chi_new, U_new

@@ -48,8 +48,9 @@ from .costs.colregs_fuzzy import (DEFAULT_E_CL, DEFAULT_EPS, DEFAULT_N_Y, RAD2DE
                                   defuzzify, encounter_inputs_xy, fis_colregs, memberships, rule_strengths)
 from .costs.path import PathTerm
 from .evaluate import DEFAULT_TERMS, context, cost_terms, evaluate
+from .methods.refine_settings import RefineSpec
 from .nlp import BATCH_MODES, SolverSettings, best_index, safeguard, solve_docp
-from .numerics import safe_sqrt, shift_controls, wrap_angle
+from .numerics import safe_sqrt, wrap_angle
 from .ownship import Path, Trajectory, los_rollout, make_path, maneuver_index
 from .packing import BehaviourArrays, SolveInputs
 from .params import Params, PlannerConfig
@@ -312,10 +313,10 @@ class RefineSettings:
             starts.  Needs ``n_starts >= 2``; a value (switching it does not recompile).
     """
 
-    n_starts: int = 4
+    n_starts: int = RefineSpec.n_starts
     batch: str = "map"
-    horizon: float | None = None
-    colregs: str = "fis"
+    horizon: float | None = RefineSpec.horizon
+    colregs: str = RefineSpec.colregs
     solver: SolverSettings = dataclasses.field(default_factory=_default_solver)
     block: int = 1
     path_eps: float = 1e-2

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..numerics import wrap_angle_host
 from .params import EvalParams
 
 __all__ = ["wrap", "PairGeometry", "pair_geometry", "stages", "classify", "SITUATIONS", "GIVE_WAY", "STAND_ON",
@@ -25,8 +26,8 @@ STAND_ON = frozenset({"OTSO", "CRSO"})
 
 
 def wrap(a):
-    """Angle(s) wrapped to (−π, π]."""
-    return (np.pi - np.mod(np.pi - np.asarray(a, float), 2 * np.pi))[()]
+    """Angle(s) wrapped to (−π, π] (:func:`psbmpc_jax.numerics.wrap_angle_host` with ``include_pi``)."""
+    return wrap_angle_host(np.asarray(a, float), include_pi=True)[()]
 
 
 @dataclass(frozen=True)

@@ -30,6 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..numerics import wrap_angle_host
+
 __all__ = ["Tracks", "load_tracks", "load_runs", "tracks_from_simulation", "USER_COLUMNS", "OPTIONAL_COLUMNS", "derive_course_speed",
            "unwrap_interp"]
 
@@ -117,7 +119,7 @@ class Tracks:
 def unwrap_interp(tk, t, angle) -> np.ndarray:
     """Angle ``angle(t)`` [rad] interpolated at ``tk`` through its unwrapped form, wrapped to (−π, π]."""
     a = np.interp(tk, t, np.unwrap(angle))
-    return np.pi - np.mod(np.pi - a, 2 * np.pi)
+    return wrap_angle_host(np.asarray(a), include_pi=True)
 
 
 def derive_course_speed(t, north, east, min_speed: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:

@@ -17,8 +17,8 @@ SMOOTH_METHODS = ("smooth_sbmpc", "sbmpc_init")
 
 @dataclass(frozen=True)
 class SmoothSpec:
-    """``mpc.smooth``: Smooth-SBMPC's horizons and corridor (Mahipala & Johansen 2024; defaults: the values of
-    :class:`psbmpc_jax.smooth.init_stage.SmoothSettings`).  Seconds and metres.
+    """``mpc.smooth``: Smooth-SBMPC's horizons and corridor (Mahipala & Johansen 2024; its defaults are
+    those of :class:`psbmpc_jax.smooth.init_stage.SmoothSettings`, which reads them here).  Seconds and metres.
 
     Attributes:
         T_init, T_mpc: horizons of the initialisation stage and of the DOCP (T_init > T_mpc, multiples of dt).

@@ -29,6 +29,7 @@ import numpy as np
 
 from ..costs.manoeuvring import gamma_smooth
 from ..costs.sbmpc import sbmpc_costs
+from ..methods.smooth_settings import FisSpec, SmoothSpec
 from ..ownship import los_rollout, make_path
 from .land_hit import first_land_hit, land_clearance
 
@@ -50,17 +51,20 @@ class SmoothSettings:
     dt: T_s, the discretisation step of both stages.  r_dom: ship-domain radius (N_TP and the corridor buffer).
     corridor_half_width: Δd.  terminal: ``"full"`` (x, y, χ, U), ``"position"`` or ``"soft"`` (a quadratic
     penalty ``terminal_weight`` instead of an equality).  fis_completion: ``"default_false"`` or ``"literal"``.
-    n_y: output grid of the FIS defuzzification."""
+    n_y: output grid of the FIS defuzzification.
 
-    T_init: float = 60.0
-    T_mpc: float = 20.0
-    dt: float = 1.0
-    r_dom: float = 4.0
-    corridor_half_width: float = 20.0
-    terminal: str = "full"
+    The defaults shared with scenario files are defined once, by the ``mpc.smooth`` and ``mpc.fis`` sections
+    (:class:`~psbmpc_jax.methods.smooth_settings.SmoothSpec`, :class:`~psbmpc_jax.methods.smooth_settings.FisSpec`)."""
+
+    T_init: float = SmoothSpec.T_init
+    T_mpc: float = SmoothSpec.T_mpc
+    dt: float = SmoothSpec.dt
+    r_dom: float = SmoothSpec.domain_radius
+    corridor_half_width: float = SmoothSpec.corridor_half_width
+    terminal: str = SmoothSpec.terminal
     terminal_weight: float = 10.0
-    fis_completion: str = "default_false"
-    n_y: int = 201
+    fis_completion: str = FisSpec.completion
+    n_y: int = FisSpec.n_y
 
     def __post_init__(self):
         for name in ("T_init", "T_mpc", "dt", "corridor_half_width", "terminal_weight"):
@@ -103,16 +107,16 @@ class SmoothWeights:
     p: float = 1.0
     q: float = 4.0
     w_coll: float = 0.1
-    d_cl: float = 40.0
-    e_cl: float = 5.0
-    eps: float = 1e-6
+    d_cl: float = FisSpec.d_cl
+    e_cl: float = FisSpec.e_cl
+    eps: float = FisSpec.eps
     k_U: float = 2.5
     k_chi_port: float = 1.8
     k_chi_stbd: float = 1.5
     Delta_U: float = 2.0
     Delta_chi_port: float = 1.2
     Delta_chi_stbd: float = 0.9
-    k_ntp: float = 1.0
+    k_ntp: float = SmoothSpec.k_ntp
 
 
 @jax.tree_util.register_dataclass

@@ -30,6 +30,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax import lax
 
+from ..methods.smooth_settings import SmoothSpec
 from ..nlp import SolverSettings
 from ..packing import pack_world, snap_origin
 from ..params import PlannerConfig
@@ -179,8 +180,9 @@ class SmoothSBMPCPlanner:
     """
 
     def __init__(self, polygons=(), *, weights: SmoothWeights | None = None, model: ShipModel | None = None,
-                 settings: SmoothSettings | None = None, solver: SolverSettings | None = None, n_starts: int = 4,
-                 batch: str = "map", init_only: bool = False, dtype: str = "float32", previous_start: bool = False):
+                 settings: SmoothSettings | None = None, solver: SolverSettings | None = None,
+                 n_starts: int = SmoothSpec.n_starts, batch: str = "map", init_only: bool = False,
+                 dtype: str = "float32", previous_start: bool = SmoothSpec.previous_start):
         self.weights = SmoothWeights() if weights is None else weights
         self.model = ShipModel() if model is None else model
         self.settings = SmoothSettings() if settings is None else settings

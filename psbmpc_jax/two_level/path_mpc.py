@@ -32,6 +32,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..methods.two_level_settings import TwoLevelSpec
 from ..nlp import STATUS_NAMES, SolverSettings, max_violation, solve_docp
 from ..numerics import wrap_angle as wrap
 from .path_frame import to_leg_frame
@@ -52,17 +53,20 @@ class PathMpcSettings:
         T_chi, T_U: course and speed time constants of the model [s].
         r_os: radius of the circle enclosing the own-ship [m] (added to every static circle).
         rk4_substeps: RK4 substeps per MPC step (static).
+
+    The defaults shared with scenario files are defined once, by the ``mpc.two_level`` section
+    (:class:`~psbmpc_jax.methods.two_level_settings.TwoLevelSpec`).
     """
 
-    N_p: int = 30
-    dt: float = 1.0
-    Q: tuple = (1e-3, 1e-3, 1.0, 1.0)
-    M: tuple = (10.0, 1.0)
-    chi_span: float = math.pi / 2
-    U_max: float = 5.0
+    N_p: int = TwoLevelSpec.N_p
+    dt: float = TwoLevelSpec.dt
+    Q: tuple = TwoLevelSpec.Q
+    M: tuple = TwoLevelSpec.M
+    chi_span: float = TwoLevelSpec.chi_span
+    U_max: float = TwoLevelSpec.U_max
     T_chi: float = 3.0
     T_U: float = 5.0
-    r_os: float = 5.0
+    r_os: float = TwoLevelSpec.r_os
     rk4_substeps: int = 1
 
     def __post_init__(self):

@@ -24,6 +24,7 @@ from ..behaviours import enumerate_behaviours_deg
 from ..costs.sbmpc import SbmpcHazardTerm
 from ..costs.zeta import ZETA_SHAPES, SbmpcZetaTerm
 from ..methods.sbmpc_family import SbmpcSettings, manoeuvring_term
+from ..methods.two_level_settings import TwoLevelSpec
 from ..numerics import wrap_angle_host
 from ..packing import Capacities, pack_world
 from ..params import PlannerConfig
@@ -59,26 +60,29 @@ class TwoLevelSettings:
         plan_stride: every how many MPC steps a planned position becomes a nominal waypoint.
         sbmpc_every: the SB-MPC solves at every ``sbmpc_every``-th update (the first included) and its
             (χ_m, U_m) is held in between (SPEC §2.4 proposes the MPC every 1 s, the SB-MPC every 5 s).
+
+    The defaults shared with scenario files are defined once, by the ``mpc.two_level`` section
+    (:class:`~psbmpc_jax.methods.two_level_settings.TwoLevelSpec`), except ``sbmpc_every``: 1 here, 5 there.
     """
 
     path: PathMpcSettings = PathMpcSettings()
-    corridor_half_width: float = 50.0
-    corridor_sample: float = 5.0
-    corridor_radius: float = 500.0
-    corridor_margin: float = 7.0
-    circle_margin: float = 2.0
-    r_accept: float = 20.0
+    corridor_half_width: float = TwoLevelSpec.corridor_half_width
+    corridor_sample: float = TwoLevelSpec.corridor_sample
+    corridor_radius: float = TwoLevelSpec.corridor_radius
+    corridor_margin: float = TwoLevelSpec.corridor_margin
+    circle_margin: float = TwoLevelSpec.circle_margin
+    r_accept: float = TwoLevelSpec.r_accept
     beta: float = DEFAULT_BETA
     d_critical: float = DEFAULT_D_CRITICAL
-    prediction_compare: str = "plus"
-    eta1: float = 0.25
-    eta2: float = 0.01
-    d_close: float = 50.0
-    zeta_d_safe: float = 50.0
-    zeta_shape: str = "printed"
+    prediction_compare: str = TwoLevelSpec.compare
+    eta1: float = TwoLevelSpec.eta1
+    eta2: float = TwoLevelSpec.eta2
+    d_close: float = TwoLevelSpec.d_close
+    zeta_d_safe: float = TwoLevelSpec.zeta_d_safe
+    zeta_shape: str = TwoLevelSpec.zeta_shape
     sbmpc: SbmpcSettings = SbmpcSettings()
-    nominal: str = "hold"
-    plan_stride: int = 5
+    nominal: str = TwoLevelSpec.nominal
+    plan_stride: int = TwoLevelSpec.plan_stride
     sbmpc_every: int = 1
 
     def __post_init__(self):

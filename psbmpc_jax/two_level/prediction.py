@@ -50,13 +50,15 @@ import jax.numpy as jnp
 import numpy as np
 from jax import lax
 
+from ..methods.two_level_settings import TwoLevelSpec
 from ..packing import ChartArrays
 from ..smooth.land_hit import (DEFAULT_BLOCK, as_chart, box_near, concrete_float, crossings, cull_tolerance,
                                edge_blocks, may_cross, ray_edge_t)
 
-#: Proposed defaults (SPEC_SEEDS §2.2): β = 5° per step at dt = 1 s, d_critical = 50 m, ray range 2 d_critical.
-DEFAULT_BETA = math.radians(5.0)
-DEFAULT_D_CRITICAL = 50.0
+#: Proposed defaults (SPEC_SEEDS §2.2): β = 5° per step at dt = 1 s, d_critical = 50 m, ray range 2 d_critical
+#: (defined once, by the scenario files' ``mpc.two_level.prediction`` section).
+DEFAULT_BETA = TwoLevelSpec.beta
+DEFAULT_D_CRITICAL = TwoLevelSpec.d_critical
 DEFAULT_DT = 1.0
 COMPARE_MODES = ("plus", "both")
 
