@@ -41,10 +41,10 @@ import re
 import shutil
 import uuid
 
-from ..safe_io import OutputError, atomic_write_text
+from ..safe_io import TEMP_SUFFIX, OutputError, atomic_write_text
 
 __all__ = ["MANIFEST", "MANIFEST_SCHEMA", "STAGING_PREFIX", "OUTPUT_PATTERNS", "RunFolderError", "new_run_id",
-           "sha256_file", "read_manifest", "run_folder_problem", "verify_member", "RunWriter"]
+           "sha256_file", "read_manifest", "run_folder_problem", "require_complete", "verify_member", "RunWriter"]
 
 log = logging.getLogger(__name__)
 
@@ -53,6 +53,8 @@ MANIFEST_SCHEMA = "psbmpc-run/1"
 #: Hidden staging folders of :class:`RunWriter` (``.psbmpc-staging-<run id>``).
 STAGING_PREFIX = ".psbmpc-staging-"
 _STAGING_RE = re.compile(re.escape(STAGING_PREFIX) + r"[0-9a-f]{32}$")
+#: The temporary files of :func:`psbmpc_jax.safe_io.atomic_open` (``.<name>.<random>.tmp``).
+_TEMP_RE = re.compile(r"^\.(.+)\.[A-Za-z0-9_]{8}" + re.escape(TEMP_SUFFIX) + "$")
 #: The names ``psbmpc-jax run`` writes into a scenario's folder (for folders written before manifests existed).
 OUTPUT_PATTERNS = ("metrics.json", "summary.md", "trajectories.csv", "trajectories.npz", "map.png", "map_run*.png",
                    "distances.png", "distances_run*.png", "course_speed.png", "course_speed_run*.png",
@@ -146,6 +148,15 @@ def run_folder_problem(folder, *, force: bool = False, option: str = "--out") ->
     return None
 
 
+def require_complete(doc: dict, path) -> None:
+    """Raise :class:`RunFolderError` naming ``path`` unless the manifest ``doc`` says the run completed."""
+    if not doc.get("complete"):
+        p = pathlib.Path(path)
+        folder = p if p.is_dir() else p.parent
+        raise RunFolderError(f"{p}: the run that wrote this folder did not complete ({_describe(doc)}; see "
+                             f"{folder / MANIFEST}); its files are not used -- run it again (with --force)")
+
+
 def verify_member(path, *, require_manifest: bool = False) -> dict | None:
     """Check the file ``path`` against the manifest of its folder; returns the manifest (None when the folder
     has none and ``require_manifest`` is False -- a bare file, checked by its reader alone).
@@ -162,9 +173,7 @@ def verify_member(path, *, require_manifest: bool = False) -> dict | None:
             raise RunFolderError(f"{p.parent}: no {MANIFEST}; not a run folder written by psbmpc-jax run")
         return None
     where = f"{p.parent / MANIFEST}"
-    if not doc.get("complete"):
-        raise RunFolderError(f"{p}: the run that wrote this folder did not complete ({_describe(doc)}; see "
-                             f"{where}); its files are not used -- run it again (with --force)")
+    require_complete(doc, p)
     entry = doc["files"].get(p.name)
     if entry is None:
         raise RunFolderError(f"{p}: not a file of run {doc['run_id']} (not listed in {where}): it is left from "
@@ -265,6 +274,11 @@ class RunWriter:
         for p in old_staging:
             if _STAGING_RE.match(p.name):
                 shutil.rmtree(p, ignore_errors=True)
+        ours = old_names | set(self._names) | {MANIFEST}
+        for p in self.folder.iterdir():        # temporary files of writes that a kill interrupted
+            m = _TEMP_RE.match(p.name)
+            if m and m.group(1) in ours and p.is_file():
+                p.unlink()
         atomic_write_text(self.folder / MANIFEST, json.dumps(self._manifest(True, files), indent=1) + "\n")
         log.info("run %s written to %s (%d files)", self.run_id, self.folder, len(files))
         return {n: self.folder / n for n in self._names}

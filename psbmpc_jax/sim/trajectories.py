@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..safe_io import OutputError, atomic_open, file_output_problem
-from .runfolder import RunFolderError, read_manifest, verify_member
+from .runfolder import RunFolderError, read_manifest, require_complete, verify_member
 
 __all__ = ["TRAJECTORY_SCHEMA", "READABLE_SCHEMAS", "CSV_DIGITS", "SHAPE_COLUMNS", "Trajectories",
            "write_trajectories", "write_trajectory_files", "load_trajectories", "csv_columns"]
@@ -202,6 +202,7 @@ def _pick(folder: pathlib.Path) -> pathlib.Path:
     present = [folder / n for n in ("trajectories.npz", "trajectories.csv") if (folder / n).is_file()]
     doc = read_manifest(folder)
     if doc is not None:
+        require_complete(doc, folder)
         listed = [p for p in present if p.name in doc["files"]]
         if listed:
             return listed[0]
