@@ -370,12 +370,13 @@ def run_scenarios(args, parser) -> int:
     from ..sim.runfolder import run_folder_problem
 
     folders = {}
-    for sc in scenarios:   # the overwrite rule, for every scenario before the first simulation
+    for sc in scenarios:
         folder = pathlib.Path(args.out) / output_folder(sc.name, args.method)
         if folder in folders:
             parser.error(f"scenarios {folders[folder]!r} and {sc.name!r} would both write {folder}; give each "
                          f"scenario once (or give the files different names)")
         folders[folder] = sc.name
+    for folder in folders:   # the overwrite rule, for every scenario before the first simulation
         problem = run_folder_problem(folder, force=args.force, option="--out")
         if problem:
             parser.error(problem)

@@ -196,8 +196,10 @@ def encounter_line(run: int, e) -> str:
 
 
 def run_evaluate(args, parser: argparse.ArgumentParser) -> int:
-    try:
-        params_from_args(args)                    # the options alone: a usage error before any file is read
+    try:                                          # the options alone: a usage error before any file is read
+        _overrides(args)
+        if args.range_scale is not None and not (math.isfinite(args.range_scale) and args.range_scale > 0):
+            raise ValueError(f"--range-scale must be a finite number > 0, got {args.range_scale:g}")
     except ValueError as exc:
         parser.error(str(exc))
     if args.out:
@@ -208,7 +210,14 @@ def run_evaluate(args, parser: argparse.ArgumentParser) -> int:
     for path in args.paths:
         try:
             stored = stored_params(path)
+        except (OSError, ValueError) as exc:
+            print(f"psbmpc-jax evaluate: {exc}", file=sys.stderr)
+            return 2
+        try:
             params = params_from_args(args, None if stored is None else stored[0])
+        except ValueError as exc:
+            parser.error(str(exc) if stored is None else f"{path}: {exc}")
+        try:
             runs = load_runs(path, own=args.own)
             evs = [evaluate_tracks(tr, params, pairs=args.pairs) for tr in runs]
         except (OSError, ValueError, KeyError) as exc:
