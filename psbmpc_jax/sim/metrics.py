@@ -482,8 +482,10 @@ def run_metrics(t, own, targets, route, polygons, *, d_collision, ground_clearan
             classifies at ``t[0]`` (the initial geometry).  Not used when ``evaluation`` is given.
         evaluation: an :class:`psbmpc_jax.evaltool.EvalParams`: classify each target's encounter as the COLREGS
             evaluation tool does (:func:`psbmpc_jax.sim.situations.first_encounters`: the situation of the
-            first encounter, locked at its start), so that the metrics and the evaluation name one situation.
-            The simulator passes the scenario's ``evaluation`` section.
+            first encounter, locked at its start, ``t_classified_s``), so that the metrics and the evaluation name
+            one situation; the compliance check then looks at the whole approach, from ``t[0]`` to the CPA (a
+            planner acts before the range falls within r_stage2).  The simulator passes the scenario's
+            ``evaluation`` section.
         own_name: the own-ship's name in ``ships``.
         target_routes, target_arrival_radii: per target its route ``[m, 2]`` and acceptance radius [m], for its
             arrival in ``ships`` (None: not judged).
@@ -536,11 +538,12 @@ def run_metrics(t, own, targets, route, polygons, *, d_collision, ground_clearan
         if evaluation is None:
             enc, t_cls = encounter_type(t, own, tg[i], classify_range)
             situation = None
-        else:
+        else:    # the tool's situation; the check's window still runs from t[0] (a planner acts before r_stage2)
             f = found[i]
             enc, situation = f["encounter"], f["situation"]
             t_cls = float("nan") if f["t_start_s"] is None or enc == "none" else f["t_start_s"]
-        comp = maneuver_compliance(t, own, tg[i], (enc, t_cls), route, d_collision=d_collision)
+        window = (enc, t_cls) if evaluation is None else (enc, float(t[0]))
+        comp = maneuver_compliance(t, own, tg[i], window, route, d_collision=d_collision)
         if situation == "NAR":
             comp["reason"] = "no applicable COLREGS rule at any sample of the encounter (EvalTool situation NAR)"
         elif evaluation is not None and situation is None:

@@ -130,7 +130,7 @@ def run_folder_problem(folder, *, force: bool = False, option: str = "--out") ->
     docstring), or None.  Nothing is changed."""
     folder = pathlib.Path(folder)
     if folder.exists() and not folder.is_dir():
-        return f"{option}: {folder} exists and is not a folder"
+        return f"{option + ': ' if option.startswith('--') else ''}{folder} exists and is not a folder"
     if not folder.exists():
         return None
     try:
