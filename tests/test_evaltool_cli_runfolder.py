@@ -21,7 +21,7 @@ import pytest
 
 from psbmpc_jax.apps.cli import main
 from psbmpc_jax.sim.output import evaluation_markdown
-from psbmpc_jax.sim.runfolder import read_manifest
+from psbmpc_jax.runfolder import read_manifest
 
 TINY = (
     "name: tiny_eval\n"

@@ -20,9 +20,9 @@ import pytest
 
 from psbmpc_jax.safe_io import OutputError, atomic_open, atomic_write_text, file_output_problem, same_file
 from psbmpc_jax.sim import load_trajectories, write_outputs, write_trajectories
-from psbmpc_jax.sim import runfolder as rf
+from psbmpc_jax import runfolder as rf
 from psbmpc_jax.sim.output import write_index
-from psbmpc_jax.sim.runfolder import MANIFEST, RunFolderError, read_manifest, run_folder_problem, verify_member
+from psbmpc_jax.runfolder import MANIFEST, RunFolderError, read_manifest, run_folder_problem, verify_member
 
 from test_export import synthetic_result  # noqa: E402  (tests/ is on sys.path)
 

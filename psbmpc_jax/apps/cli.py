@@ -367,7 +367,7 @@ def run_scenarios(args, parser) -> int:
     problem = output_dir_problem(args.out, "--out")
     if problem:
         parser.error(problem)
-    from ..sim.runfolder import run_folder_problem
+    from ..runfolder import run_folder_problem
 
     folders = {}
     for sc in scenarios:

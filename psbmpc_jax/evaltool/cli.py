@@ -104,7 +104,7 @@ def params_from_args(args, stored: EvalParams | None = None) -> EvalParams:
 
 def _run_folder(path: pathlib.Path) -> pathlib.Path | None:
     """The run folder ``path`` is or lies in (a folder with a psbmpc-jax manifest), else None."""
-    from ..sim.runfolder import read_manifest
+    from ..runfolder import read_manifest
 
     folder = path if path.is_dir() else path.parent
     return folder if read_manifest(folder) is not None else None
@@ -114,7 +114,7 @@ def stored_params(path) -> tuple[EvalParams, str] | None:
     """The evaluation settings stored with the run whose folder ``path`` is or lies in (``metrics.json``: the
     scenario's ``evaluation`` section, else the parameters its evaluation recorded), and the file they came
     from; None outside a run folder.  metrics.json is checked against the run's manifest first."""
-    from ..sim.runfolder import verify_member
+    from ..runfolder import verify_member
 
     folder = _run_folder(pathlib.Path(path))
     if folder is None:
@@ -142,7 +142,7 @@ def ranges_line(p: EvalParams) -> str:
 
 def _protected(paths) -> list[pathlib.Path]:
     """Every file ``evaluate`` reads or that belongs to a run folder it reads."""
-    from ..sim.runfolder import read_manifest
+    from ..runfolder import read_manifest
 
     out = []
     for path in paths:

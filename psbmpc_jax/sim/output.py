@@ -1,7 +1,7 @@
 """Write a simulation's results into a run folder: ``metrics.json`` (summary + per-run metrics + provenance),
 ``summary.md``, the figures of :mod:`psbmpc_jax.sim.plots`, on request every run's trajectories
 (``trajectories.csv`` / ``trajectories.npz``, read back with :func:`load_trajectories`), and ``manifest.json``
-last (:mod:`psbmpc_jax.sim.runfolder`: run id, files with sizes and hashes, completeness).  Every file is
+last (:mod:`psbmpc_jax.runfolder`: run id, files with sizes and hashes, completeness).  Every file is
 written atomically; a folder that holds another run is replaced only with ``force`` and then exactly that
 run's files go."""
 
@@ -17,7 +17,7 @@ import numpy as np
 
 from ..provenance import commit, versions
 from ..safe_io import atomic_write_text
-from .runfolder import MANIFEST, RunFolderError, RunWriter, verify_member
+from ..runfolder import MANIFEST, RunFolderError, RunWriter, verify_member
 from .trajectories import (CSV_DIGITS, TRAJECTORY_SCHEMA, Trajectories, load_trajectories, write_trajectories,
                            write_trajectory_files)
 
@@ -280,7 +280,7 @@ def write_outputs(result, out_dir, *, figures: bool = True, plot_runs=None, anim
     figures of :func:`psbmpc_jax.sim.plots.write_figures` for the runs ``plot_runs`` (default: run 0); with
     ``animate=True`` an animation of each of those runs (GIF, and MP4 when ffmpeg is installed); with
     ``trajectories=True`` every run's trajectories as ``trajectories.csv`` and ``trajectories.npz``; and
-    ``manifest.json`` last (:mod:`psbmpc_jax.sim.runfolder`).
+    ``manifest.json`` last (:mod:`psbmpc_jax.runfolder`).
 
     Every file is staged first and moved in at the end, so a failure or a kill while the results are produced
     leaves the folder as it was.  A folder that holds another run is refused unless ``force``; then exactly the

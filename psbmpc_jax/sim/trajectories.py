@@ -2,7 +2,7 @@
 :data:`TRAJECTORY_SCHEMA`), written atomically by :func:`write_trajectories` and read back, checked, by
 :func:`load_trajectories`.
 
-A file inside a run folder (one with a ``manifest.json``, :mod:`psbmpc_jax.sim.runfolder`) is read only when the
+A file inside a run folder (one with a ``manifest.json``, :mod:`psbmpc_jax.runfolder`) is read only when the
 run completed, the file is listed and its size and SHA-256 are those recorded.  A file on its own is checked by
 what it says about itself: the CSV declares the shape it holds (``n_runs``, ``n_ships``, ``n_steps`` on every
 row), so a file cut anywhere -- also at a run boundary -- is refused; the NPZ is a zip archive whose damage
@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..safe_io import OutputError, atomic_open, file_output_problem
-from .runfolder import RunFolderError, read_manifest, require_complete, verify_member
+from ..runfolder import RunFolderError, read_manifest, require_complete, verify_member
 
 __all__ = ["TRAJECTORY_SCHEMA", "READABLE_SCHEMAS", "CSV_DIGITS", "SHAPE_COLUMNS", "Trajectories",
            "write_trajectories", "write_trajectory_files", "load_trajectories", "csv_columns"]
@@ -230,7 +230,7 @@ def load_trajectories(path) -> Trajectories:
     Raises:
         FileNotFoundError: no such file, or a folder without trajectories.
         ValueError: a file that is not a trajectory export, or one that is damaged or cut short; in a run folder
-            (:class:`~psbmpc_jax.sim.runfolder.RunFolderError`, a ValueError): an incomplete run, a file the
+            (:class:`~psbmpc_jax.runfolder.RunFolderError`, a ValueError): an incomplete run, a file the
             manifest does not list (left from another run), or a size or hash that differs from the recorded
             one.  The message names the file and what is wrong.
     """

@@ -41,7 +41,7 @@ import re
 import shutil
 import uuid
 
-from ..safe_io import TEMP_SUFFIX, OutputError, atomic_write_text
+from .safe_io import TEMP_SUFFIX, OutputError, atomic_write_text
 
 __all__ = ["MANIFEST", "MANIFEST_SCHEMA", "STAGING_PREFIX", "OUTPUT_PATTERNS", "RunFolderError", "new_run_id",
            "sha256_file", "read_manifest", "run_folder_problem", "require_complete", "verify_member", "RunWriter"]
@@ -235,8 +235,8 @@ class RunWriter:
             self.path(p.name)
 
     def _manifest(self, complete: bool, files: dict, replacing=()) -> dict:
-        from .. import __version__
-        from ..provenance import commit
+        from . import __version__
+        from .provenance import commit
 
         doc = {"schema": MANIFEST_SCHEMA, "run_id": self.run_id, "complete": complete,
                "created_utc": self.created_utc, "completed_utc": _now() if complete else None, **self.meta,
