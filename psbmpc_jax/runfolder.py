@@ -83,11 +83,17 @@ def _now() -> str:
     return _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
 
 
-def read_manifest(folder) -> dict | None:
+def read_manifest(folder, *, foreign: str = "raise") -> dict | None:
     """The manifest of ``folder``, or None when it has none.
 
+    Args:
+        foreign: what a ``manifest.json`` of another tool (valid JSON without a ``psbmpc-run/`` schema) gives:
+            ``"raise"`` (writers: it is never overwritten) or ``"ignore"`` (readers: None, the folder is no run
+            folder and its files are checked on their own).
+
     Raises:
-        RunFolderError: a ``manifest.json`` that cannot be read, or is not a psbmpc-jax run manifest.
+        RunFolderError: a ``manifest.json`` that cannot be read, a psbmpc-jax manifest of another version, or
+            (``foreign="raise"``) one of another tool.
     """
     path = pathlib.Path(folder) / MANIFEST
     if not path.is_file():
@@ -96,10 +102,14 @@ def read_manifest(folder) -> dict | None:
         doc = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise RunFolderError(f"{path}: cannot be read as a run manifest ({exc})") from None
-    if not isinstance(doc, dict) or doc.get("schema") != MANIFEST_SCHEMA:
-        schema = doc.get("schema") if isinstance(doc, dict) else None
-        raise RunFolderError(f"{path}: not a psbmpc-jax run manifest (schema {schema!r}, expected "
-                             f"{MANIFEST_SCHEMA!r})")
+    schema = doc.get("schema") if isinstance(doc, dict) else None
+    if schema != MANIFEST_SCHEMA:
+        ours = isinstance(schema, str) and schema.startswith("psbmpc-run/")
+        if foreign == "ignore" and not ours:
+            log.debug("%s: not a psbmpc-jax run manifest (schema %r); ignored", path, schema)
+            return None
+        raise RunFolderError(f"{path}: not a psbmpc-jax run manifest of this version (schema {schema!r}, "
+                             f"expected {MANIFEST_SCHEMA!r})")
     if not isinstance(doc.get("files"), dict) or not isinstance(doc.get("run_id"), str):
         raise RunFolderError(f"{path}: a run manifest without run_id or files")
     return doc
@@ -167,7 +177,7 @@ def verify_member(path, *, require_manifest: bool = False) -> dict | None:
             run) -- the message names the file and what is wrong.
     """
     p = pathlib.Path(path)
-    doc = read_manifest(p.parent)
+    doc = read_manifest(p.parent, foreign="ignore")
     if doc is None:
         if require_manifest:
             raise RunFolderError(f"{p.parent}: no {MANIFEST}; not a run folder written by psbmpc-jax run")

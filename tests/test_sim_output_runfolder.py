@@ -178,12 +178,19 @@ def test_incomplete_or_foreign_manifest(two, tmp_path):
     atomic_write_text(folder / MANIFEST, json.dumps({**doc, "complete": False}))
     with pytest.raises(RunFolderError, match="did not complete"):
         load_trajectories(folder)
-    (folder / MANIFEST).write_text(json.dumps({"schema": "other-tool/3", "files": {}}))
-    with pytest.raises(RunFolderError, match="not a psbmpc-jax run manifest"):
+    (folder / MANIFEST).write_text(json.dumps({**doc, "schema": "psbmpc-run/9"}))
+    with pytest.raises(RunFolderError, match="not a psbmpc-jax run manifest of this version"):
         load_trajectories(folder)
-    assert "not overwritten" in run_folder_problem(folder, force=True)     # never over a foreign manifest
+    (folder / MANIFEST).write_text("{ cut")
+    with pytest.raises(RunFolderError, match="cannot be read as a run manifest"):
+        load_trajectories(folder)
+    # another tool's manifest.json: the folder is no run folder; its files are read (and checked) on their own
+    (folder / MANIFEST).write_text(json.dumps({"schema": "other-tool/3", "files": {}}))
+    assert load_trajectories(folder).runs == 2
+    assert "not overwritten" in run_folder_problem(folder, force=True)     # but never written over
     with pytest.raises(OutputError, match="not a psbmpc-jax run manifest"):
         write_outputs(two, folder, figures=False, force=True)
+    assert json.loads((folder / MANIFEST).read_text())["schema"] == "other-tool/3"
 
 
 # ======================================================================================== the overwrite rule

@@ -107,7 +107,7 @@ def _run_folder(path: pathlib.Path) -> pathlib.Path | None:
     from ..runfolder import read_manifest
 
     folder = path if path.is_dir() else path.parent
-    return folder if read_manifest(folder) is not None else None
+    return folder if read_manifest(folder, foreign="ignore") is not None else None
 
 
 def stored_params(path) -> tuple[EvalParams, str] | None:

@@ -200,7 +200,7 @@ def _pick(folder: pathlib.Path) -> pathlib.Path:
     """The trajectory file of a folder: the NPZ (exact, smaller) before the CSV; in a run folder only a
     file its manifest lists."""
     present = [folder / n for n in ("trajectories.npz", "trajectories.csv") if (folder / n).is_file()]
-    doc = read_manifest(folder)
+    doc = read_manifest(folder, foreign="ignore")
     if doc is not None:
         require_complete(doc, folder)
         listed = [p for p in present if p.name in doc["files"]]
