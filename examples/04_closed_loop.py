@@ -28,7 +28,7 @@ import time
 
 from psbmpc_jax import paper_behaviours
 from psbmpc_jax.scenario import builtin_scenarios, load_scenario
-from psbmpc_jax.sim import load_trajectories, simulate, write_outputs, write_trajectories
+from psbmpc_jax.sim import load_trajectories, simulate, write_outputs
 
 
 def main(argv=None) -> int:
@@ -57,8 +57,8 @@ def main(argv=None) -> int:
           f"median {s['solve_wall_s_amortised_median'] * 1e3:.1f} ms per solve)")
 
     out = pathlib.Path(args.out) / scenario.name
-    paths = write_outputs(result, out, figures=not (quick or args.no_figures))
-    paths.update({q.name: q for q in write_trajectories(result, out)})
+    # a run folder: its manifest.json lists every file; force=True replaces this example's earlier results
+    paths = write_outputs(result, out, figures=not (quick or args.no_figures), trajectories=True, force=True)
     closest = {tg["name"]: round(tg["min_distance_m"]["min"], 1) for tg in s["targets"]}
     print(f"own-ship collisions: {s['collisions']}, closest approach [m]: {closest}")
     tr = load_trajectories(out)                 # the exported trajectories, read back

@@ -122,7 +122,7 @@ def main(argv=None) -> int:
         t0 = time.perf_counter()
         res = simulate(sc, runs=args.runs, seed=args.seed, progress=not args.quiet)
         wall = time.perf_counter() - t0
-        write_outputs(res, out / m, figures=True)
+        write_outputs(res, out / m, figures=True, force=args.force)
         results[m], records[m] = res, method_record(res, wall)
         r = records[m]
         print(f"{m}: {r['runs']} runs in {wall:.0f} s; collisions {r['collisions']}, groundings {r['groundings']}, "

@@ -98,10 +98,10 @@ def test_reader_errors(tmp_path):
         load_trajectories(tmp_path)
     bad = tmp_path / "trajectories.csv"
     bad.write_text("a,b\n1,2\n")
-    with pytest.raises(ValueError, match="not a psbmpc-traj/1 trajectory CSV"):
+    with pytest.raises(ValueError, match="not a psbmpc-traj/2 trajectory CSV"):
         load_trajectories(bad)
     np.savez(tmp_path / "other.npz", x=np.zeros(3))
-    with pytest.raises(ValueError, match="not a psbmpc-traj/1 trajectory file"):
+    with pytest.raises(ValueError, match="not a psbmpc-traj/2 trajectory file"):
         load_trajectories(tmp_path / "other.npz")
     with pytest.raises(ValueError, match="formats"):
         write_trajectories(synthetic_result(1), tmp_path, formats=("xlsx",))

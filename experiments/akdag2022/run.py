@@ -170,7 +170,7 @@ def main(argv=None) -> int:
             res = simulate(sc, runs=args.runs, progress=not args.quiet)
             wall = time.perf_counter() - t0
             folder = variant.split(" ")[0].replace("(", "").replace(")", "")
-            write_outputs(res, out / name / folder, figures=True)
+            write_outputs(res, out / name / folder, figures=True, force=args.force)
             rows = records(res)
             doc["results"].setdefault(name, {})[variant] = {"aggregate": aggregate(rows), "runs": rows,
                                                            "wall_s": round(wall, 1)}

@@ -144,7 +144,7 @@ def main(argv=None) -> int:
         res = simulate(sc, runs=args.runs, progress=not args.quiet)
         wall = time.perf_counter() - t0
         planner = TwoLevelController(sc).planner                  # the same corridors and circles (cached)
-        write_outputs(res, out / name, figures=True)
+        write_outputs(res, out / name, figures=True, force=args.force)
         if ref_xy is None:
             ref_xy = res.states[0, 0, :, :2]
         rows = records(res, planner, ref_xy, sc.mpc.sbmpc.d_cl)

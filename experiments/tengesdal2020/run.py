@@ -142,7 +142,7 @@ def main(argv=None) -> int:
         t0 = time.perf_counter()
         res = simulate(sc, runs=args.runs, seed=args.seed, progress=not args.quiet)
         wall = time.perf_counter() - t0
-        write_outputs(res, out / sc.name / method, figures=True)
+        write_outputs(res, out / sc.name / method, figures=True, force=args.force)
         rows = run_records(res, sc.mpc.sbmpc.d_safe, math.radians(args.alteration_deg))
         rec = {"aggregate": aggregate(rows), "runs": rows, "wall_s": round(wall, 1), "d_safe_m": sc.mpc.sbmpc.d_safe,
                "collision_distance_m": sc.d_collision, "seed": sc.seed if args.seed is None else args.seed}

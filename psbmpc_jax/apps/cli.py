@@ -188,6 +188,10 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                    help="write every run's trajectories, chosen offsets and cost terms to trajectories.csv and "
                         "trajectories.npz (read them with psbmpc_jax.sim.load_trajectories)")
     p.add_argument("--no-figures", action="store_true", help="no PNG figures (metrics, and what is asked for)")
+    p.add_argument("--force", action="store_true",
+                   help="replace the results of an earlier run in a scenario's folder (only the files listed in "
+                        "its manifest.json are removed; other files are left alone); without it such a folder "
+                        "is refused before anything is simulated")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
@@ -302,6 +306,18 @@ def _verdict(s: dict) -> str:
     return "FAILED: " + ", ".join(failed) if failed else "no collisions or groundings"
 
 
+def _stops_text(s: dict) -> str:
+    """The own-ship's stops and arrival over the runs, for the line per scenario."""
+    own = (s.get("ships") or [None])[0]
+    if own is None:
+        return f"arrived in {s.get('arrived_runs', 0)} of {s['runs']} runs"
+    ls = own["longest_stop"]
+    stops = "no stops" if ls is None else (f"{own['stops_total']} stop{'s' if own['stops_total'] != 1 else ''} "
+                                           f"(longest {ls['s']:.0f} s)")
+    arrived = "" if own["arrived_runs"] is None else f", arrived in {own['arrived_runs']} of {own['runs']} runs"
+    return stops + arrived
+
+
 def run_scenarios(args, parser) -> int:
     import fnmatch
 
@@ -351,6 +367,19 @@ def run_scenarios(args, parser) -> int:
     problem = output_dir_problem(args.out, "--out")
     if problem:
         parser.error(problem)
+    from ..runfolder import run_folder_problem
+
+    folders = {}
+    for sc in scenarios:
+        folder = pathlib.Path(args.out) / output_folder(sc.name, args.method)
+        if folder in folders:
+            parser.error(f"scenarios {folders[folder]!r} and {sc.name!r} would both write {folder}; give each "
+                         f"scenario once (or give the files different names)")
+        folders[folder] = sc.name
+    for folder in folders:   # the overwrite rule, for every scenario before the first simulation
+        problem = run_folder_problem(folder, force=args.force, option="--out")
+        if problem:
+            parser.error(problem)
 
     import jax
 
@@ -367,8 +396,12 @@ def run_scenarios(args, parser) -> int:
         result = simulate(scenario, runs=args.runs, seed=args.seed, batch=args.batch, progress=not args.quiet,
                           key=key)
         out = pathlib.Path(args.out) / output_folder(scenario.name, args.method)
-        write_outputs(result, out, figures=not args.no_figures, plot_runs=plot_runs[scenario.name],
-                      animate=args.animate, trajectories=args.save_trajectories)
+        try:
+            write_outputs(result, out, figures=not args.no_figures, plot_runs=plot_runs[scenario.name],
+                          animate=args.animate, trajectories=args.save_trajectories, force=args.force)
+        except OSError as exc:      # OutputError included: the folder changed while simulating, a full disk
+            print(f"psbmpc-jax run: {scenario.name}: the results could not be written: {exc}", file=sys.stderr)
+            return 2
         s = result.summary
         total_runs += s["runs"]
         verdict = _verdict(s)
@@ -380,8 +413,12 @@ def run_scenarios(args, parser) -> int:
         print(f"{scenario.name}: {s['runs']} runs in {time.perf_counter() - t0:.0f} s (method "
               f"{s['method'] or 'none'}): {verdict}; "
               f"closest approach {closest or 'n/a'}" + (f", to land {land:.1f} m" if land is not None else "")
-              + f"; {s['mpc_solves_total']} MPC solves; results in {out}{os.sep}")
-    index = write_index(args.out)
+              + f"; own-ship {_stops_text(s)}; {s['mpc_solves_total']} MPC solves; results in {out}{os.sep}")
+    try:
+        index = write_index(args.out)
+    except OSError as exc:
+        print(f"psbmpc-jax run: index.md could not be written: {exc}", file=sys.stderr)
+        return 2
     n_sc = len(scenarios)
     head = (f"psbmpc-jax run: {n_sc} scenario{'s' if n_sc != 1 else ''}, {total_runs} run"
             f"{'s' if total_runs != 1 else ''} in {time.perf_counter() - t_all:.0f} s")

@@ -1,11 +1,16 @@
 """``psbmpc-jax evaluate``: COLREGS scores of saved trajectories (the simulator's ``trajectories.npz`` /
-``trajectories.csv`` or output folder, or a user CSV in the documented column format, docs/evaltool.md).
+``trajectories.csv`` or run folder, or a user CSV in the documented column format, docs/evaltool.md).
 
+    psbmpc-jax evaluate results/head_on                      # a run folder: the run's own evaluation settings
     psbmpc-jax evaluate results/head_on/trajectories.npz --range-scale 0.16666667
     psbmpc-jax evaluate my_ais_tracks.csv --own ferry --preset inland_small --set r_stage2_m=120 --out scores.json
 
-Prints, per file, one line per encounter (run, vessels, situation, status, CPA range, S_sit, S_safety, the
-penalties that apply) and the summary over runs per pair of vessels; ``--out`` writes everything as JSON.
+The parameters: ``--preset`` / ``--range-scale`` when given; otherwise, for a run folder (or a file in one), the
+evaluation settings stored with the run (``metrics.json``: the scenario's ``evaluation`` section), else the
+``default`` preset; ``--set`` then changes single fields.  Prints, per file, the ranges used and where they came
+from, one line per encounter (run, vessels, situation, status, CPA range, S_sit, S_safety, the penalties that
+apply) and the summary over runs per pair of vessels; ``--out`` writes everything as JSON (atomically; never
+over an input file or a file of a run folder it reads, nor over another file unless ``--force``).
 Exit status 2 (with a message naming the file) for a file that cannot be read or scored.
 """
 
@@ -18,6 +23,7 @@ import math
 import pathlib
 import sys
 
+from ..safe_io import atomic_write_text, file_output_problem, same_file
 from .aggregate import aggregate
 from .evaluate import PAIR_MODES, evaluate_tracks
 from .params import PRESETS, EvalParams, scaled_params
@@ -25,22 +31,30 @@ from .tracks import load_runs
 
 #: Penalties printed per encounter when they apply and are > 0.
 PRINTED_PENALTIES = ("P_delay", "P_na_delta", "P_nsb", "P_sts", "P_ah13", "P_ah15", "P_2", "P_3", "P_pt")
+#: Schema id of the ``--out`` document.
+OUTPUT_SCHEMA = "psbmpc-eval/1"
+#: Files of a folder that ``evaluate`` may read (never written over).
+_READ_IN_FOLDER = ("trajectories.npz", "trajectories.csv", "metrics.json", "manifest.json")
 
 
 def add_evaluate_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("paths", nargs="+", help="trajectories.npz / trajectories.csv / a `run` output folder / a user "
                                             "CSV (columns t_s, vessel, north_m, east_m[, course_deg, speed_mps])")
-    p.add_argument("--preset", choices=tuple(PRESETS), default="default",
-                   help="parameter preset (default: the SPEC's open-water values; inland_small: seed 000 Table V)")
-    p.add_argument("--range-scale", type=float, default=1.0, metavar="X",
+    p.add_argument("--preset", choices=tuple(PRESETS), default=None,
+                   help="parameter preset (default: a run's stored evaluation settings, else 'default', the "
+                        "open-water values; inland_small: Mahipala & Johansen 2024, Table V)")
+    p.add_argument("--range-scale", type=float, default=None, metavar="X",
                    help="multiply the preset's stage radii and CPA ranges by X > 0 (e.g. 5/30 for 5 m vessels "
-                        "whose collision distance is 5 m)")
+                        "whose collision distance is 5 m); with it the preset replaces a run's stored settings")
     p.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE", dest="overrides",
-                   help="override one EvalParams field after the scaling (repeatable), e.g. r_stage2_m=300")
+                   help="override one EvalParams field after the scaling (repeatable), e.g. r_stage2_m=300; on a "
+                        "run's stored settings too")
     p.add_argument("--own", default=None, help="name of the own-ship (default: the file's own-ship / first vessel)")
     p.add_argument("--pairs", choices=PAIR_MODES, default="own",
                    help="own: own-ship against every other vessel (default); all: every ordered pair")
-    p.add_argument("--out", default=None, help="write the scores as JSON to this file")
+    p.add_argument("--out", default=None, help="write the scores as JSON to this file (atomically; an existing "
+                                               "file is replaced only if it is an earlier evaluate output)")
+    p.add_argument("--force", action="store_true", help="let --out replace an existing file of another kind")
 
 
 def _value(field: dataclasses.Field, text: str):
@@ -57,10 +71,7 @@ def _value(field: dataclasses.Field, text: str):
         raise ValueError(f"--set {field.name}: a number expected, got {text!r}") from None
 
 
-def params_from_args(args) -> EvalParams:
-    """The :class:`EvalParams` of ``--preset``, ``--range-scale`` and ``--set`` (ValueError naming the option)."""
-    if not (math.isfinite(args.range_scale) and args.range_scale > 0):
-        raise ValueError(f"--range-scale must be a finite number > 0, got {args.range_scale:g}")
+def _overrides(args) -> dict:
     fields = {f.name: f for f in dataclasses.fields(EvalParams)}
     kw = {}
     for item in args.overrides:
@@ -71,7 +82,105 @@ def params_from_args(args) -> EvalParams:
         if key not in fields:
             raise ValueError(f"--set: unknown field {key!r}; allowed: {', '.join(fields)}")
         kw[key] = _value(fields[key], text)
-    return scaled_params(args.preset, args.range_scale, **kw)
+    return kw
+
+
+def params_from_args(args, stored: EvalParams | None = None) -> EvalParams:
+    """The :class:`EvalParams` of the command line (ValueError naming the option): ``--preset`` and
+    ``--range-scale`` when either is given, else ``stored`` (a run's own settings) when given, else the
+    ``default`` preset; then the ``--set`` fields."""
+    scale = getattr(args, "range_scale", None)
+    if scale is not None and not (math.isfinite(scale) and scale > 0):
+        raise ValueError(f"--range-scale must be a finite number > 0, got {scale:g}")
+    kw = _overrides(args)
+    preset = getattr(args, "preset", None)
+    if stored is not None and preset is None and scale is None:
+        try:
+            return stored.replace(**kw) if kw else stored
+        except ValueError as exc:
+            raise ValueError(f"--set on the run's stored settings: {exc}") from None
+    return scaled_params(preset or "default", 1.0 if scale is None else scale, **kw)
+
+
+def _run_folder(path: pathlib.Path) -> pathlib.Path | None:
+    """The run folder ``path`` is or lies in (a folder with a psbmpc-jax manifest), else None."""
+    from ..runfolder import read_manifest
+
+    folder = path if path.is_dir() else path.parent
+    return folder if read_manifest(folder, foreign="ignore") is not None else None
+
+
+def stored_params(path) -> tuple[EvalParams, str] | None:
+    """The evaluation settings stored with the run whose folder ``path`` is or lies in (``metrics.json``: the
+    scenario's ``evaluation`` section, else the parameters its evaluation recorded), and the file they came
+    from; None outside a run folder.  metrics.json is checked against the run's manifest first."""
+    from ..runfolder import verify_member
+
+    folder = _run_folder(pathlib.Path(path))
+    if folder is None:
+        return None
+    metrics = folder / "metrics.json"
+    if not metrics.is_file():
+        raise FileNotFoundError(f"{metrics}: the run folder has no metrics.json")
+    verify_member(metrics)
+    doc = json.loads(metrics.read_text(encoding="utf-8"))
+    stored = doc.get("scenario", {}).get("evaluation") or doc.get("colregs_evaluation", {}).get("params")
+    if not stored:
+        return None
+    try:
+        return EvalParams(**stored), str(metrics)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{metrics}: the stored evaluation settings cannot be used ({exc})") from None
+
+
+def ranges_line(p: EvalParams) -> str:
+    """The ranges of ``p`` in one line (what ``evaluate`` prints)."""
+    return (f"stages r_Stage2/3/4 {p.r_stage2_m:g} / {p.r_stage3_m:g} / {p.r_stage4_m:g} m, CPA ranges r_pref "
+            f"{p.r_pref_m:g}, r_min {p.r_min_m:g}, r_nm {p.r_nm_m:g}, r_col {p.r_col_m:g} m, sample interval "
+            f"{p.sample_interval_s:g} s")
+
+
+def _protected(paths) -> list[pathlib.Path]:
+    """Every file ``evaluate`` reads or that belongs to a run folder it reads."""
+    from ..runfolder import read_manifest
+
+    out = []
+    for path in paths:
+        p = pathlib.Path(path).expanduser()
+        if p.is_file() or not p.exists():
+            out.append(p)
+        folder = p if p.is_dir() else p.parent
+        out += [folder / n for n in _READ_IN_FOLDER if p.is_dir() or n in ("metrics.json", "manifest.json")]
+        try:
+            doc = read_manifest(folder)
+        except ValueError:
+            doc = None
+        if doc is not None:
+            out += [folder / n for n in doc["files"]]
+    return out
+
+
+def output_problem(out, paths, force: bool = False) -> str | None:
+    """Why ``--out`` may not be written, or None: it names an input file or a file of a run folder read (also
+    through a symlink or another spelling), it cannot be written, or it is an existing file that is not an
+    earlier ``evaluate`` output (unless ``force``)."""
+    o = pathlib.Path(out).expanduser()
+    for p in _protected(paths):
+        if same_file(o, p):
+            return (f"--out {out}: that is {p}, a file this command reads or a result of the run it reads; "
+                    f"refusing to write over it (choose another file)")
+    problem = file_output_problem(o)
+    if problem:
+        return f"--out {out}: {problem}"
+    if o.is_file() and not force:
+        try:
+            ours = json.loads(o.read_text(encoding="utf-8")).get("schema") == OUTPUT_SCHEMA
+        except (OSError, UnicodeDecodeError, ValueError, AttributeError):
+            ours = False
+        if not ours:
+            return (f"--out {out}: the file exists and is not an earlier psbmpc-jax evaluate output; choose "
+                    f"another name, remove it, or pass --force to replace it")
+    return None
 
 
 def _fmt(v, nd: int = 2) -> str:
@@ -87,20 +196,48 @@ def encounter_line(run: int, e) -> str:
 
 
 def run_evaluate(args, parser: argparse.ArgumentParser) -> int:
-    try:
-        params = params_from_args(args)
+    try:                                          # the options alone: a usage error before any file is read
+        _overrides(args)
+        if args.range_scale is not None and not (math.isfinite(args.range_scale) and args.range_scale > 0):
+            raise ValueError(f"--range-scale must be a finite number > 0, got {args.range_scale:g}")
     except ValueError as exc:
         parser.error(str(exc))
+    if args.out:
+        problem = output_problem(args.out, args.paths, force=args.force)
+        if problem:
+            parser.error(problem)
     docs = []
     for path in args.paths:
+        try:
+            stored = stored_params(path)
+        except (OSError, ValueError) as exc:
+            print(f"psbmpc-jax evaluate: {exc}", file=sys.stderr)
+            return 2
+        try:
+            params = params_from_args(args, None if stored is None else stored[0])
+        except ValueError as exc:
+            parser.error(str(exc) if stored is None else f"{path}: {exc}")
         try:
             runs = load_runs(path, own=args.own)
             evs = [evaluate_tracks(tr, params, pairs=args.pairs) for tr in runs]
         except (OSError, ValueError, KeyError) as exc:
-            print(f"psbmpc-jax evaluate: {path}: {exc}", file=sys.stderr)
+            text = str(exc)
+            named = text.startswith(str(path)) or text.startswith(str(pathlib.Path(path)))
+            print(f"psbmpc-jax evaluate: {text if named else f'{path}: {text}'}", file=sys.stderr)
             return 2
+        explicit = args.preset is not None or args.range_scale is not None
+        if stored is not None and not explicit:
+            source = f"the run's stored evaluation settings ({stored[1]})"
+        else:
+            source = f"preset {args.preset or 'default'}" + (
+                f" x {args.range_scale:g}" if args.range_scale is not None else "")
+            if stored is not None:
+                source += f", replacing the run's stored settings ({stored[1]})"
+        if args.overrides:
+            source += ", with " + ", ".join(args.overrides)
         agg = aggregate(evs)
         print(f"{path}: {len(evs)} run(s), {agg['encounters']} encounter(s)")
+        print(f"  ranges: {ranges_line(params)} (from {source})")
         for r, ev in enumerate(evs):
             for e in ev.encounters:
                 print(encounter_line(r, e))
@@ -109,13 +246,22 @@ def run_evaluate(args, parser: argparse.ArgumentParser) -> int:
             print(f"  {pair['vessel']} vs {pair['other']} over {pair['runs_with_encounter']} run(s): "
                   f"S_sit mean {_fmt(sc['S_sit']['mean'])} (min {_fmt(sc['S_sit']['min'])}), S_safety mean "
                   f"{_fmt(sc['S_safety']['mean'])} (min {_fmt(sc['S_safety']['min'])}); situations {pair['situations']}")
-        docs.append({"path": str(path), "aggregate": agg, "runs": [ev.to_dict() for ev in evs]})
+        docs.append({"path": str(path), "params": params.as_dict(), "params_from": source, "aggregate": agg,
+                     "runs": [ev.to_dict() for ev in evs]})
     if args.out:
-        out = pathlib.Path(args.out)
-        out.parent.mkdir(parents=True, exist_ok=True)
-        out.write_text(json.dumps({"params": params.as_dict(), "pairs": args.pairs, "files": docs}, indent=1) + "\n")
+        same = all(d["params"] == docs[0]["params"] for d in docs)
+        doc = {"schema": OUTPUT_SCHEMA, "params": docs[0]["params"] if same else None, "pairs": args.pairs,
+               "files": docs}
+        try:
+            out = pathlib.Path(args.out).expanduser()
+            out.parent.mkdir(parents=True, exist_ok=True)
+            atomic_write_text(out, json.dumps(doc, indent=1) + "\n")
+        except OSError as exc:
+            print(f"psbmpc-jax evaluate: --out {args.out}: {exc}", file=sys.stderr)
+            return 2
         print(f"wrote {out}")
     return 0
 
 
-__all__ = ["add_evaluate_arguments", "params_from_args", "run_evaluate", "encounter_line"]
+__all__ = ["add_evaluate_arguments", "params_from_args", "run_evaluate", "encounter_line", "stored_params",
+           "output_problem", "ranges_line", "OUTPUT_SCHEMA"]

@@ -27,6 +27,7 @@ import shapely
 
 from ..checks import positive, waypoints
 from ..numerics import wrap_angle_host
+from .stops import STOP_SPEED_MPS, aggregate_ships, longest_stop, ship_metrics, stop_metrics
 
 __all__ = [
     "HEAD_ON_SECTOR_DEG",
@@ -415,29 +416,6 @@ def course_rate(t, chi):
     return wrap_angle_host(np.diff(chi)) / np.diff(t)
 
 
-#: A ship "stops dead" while its speed over ground is at or below this [m/s] (:func:`longest_stop`).
-STOP_SPEED_MPS = 0.2
-
-
-def longest_stop(t, speed, threshold=STOP_SPEED_MPS) -> float:
-    """The longest stretch of time [s] during which ``speed`` stays at or below ``threshold``: from the first
-    sample of a run of such samples to its last (0 when no sample, or one isolated sample, is that slow)."""
-    t = _check_t(t)
-    speed = np.asarray(speed, dtype=float)
-    if speed.shape != t.shape:
-        raise ValueError(f"speed must have the shape of t {t.shape}, got {speed.shape}")
-    slow = speed <= positive(threshold, "threshold", allow_zero=True)
-    best, start = 0.0, None
-    for k, is_slow in enumerate(slow):
-        if is_slow and start is None:
-            start = k
-        if start is not None and (not is_slow or k == slow.size - 1):
-            end = k if is_slow else k - 1
-            best = max(best, float(t[end] - t[start]))
-            start = None
-    return best
-
-
 def voyage_metrics(t, own, route, arrival_radius=None) -> dict:
     """The voyage of the own-ship (seed 000, Table X): from the start to the first sample within
     ``arrival_radius`` of the last waypoint, or the whole run when it never gets there.
@@ -447,8 +425,9 @@ def voyage_metrics(t, own, route, arrival_radius=None) -> dict:
     consecutive positions), ``course_min_deg`` / ``course_max_deg`` (the extremes of the continuous course:
     unwrapped, in degrees, shifted so that the first course lies in [0, 360) -- a course that crosses north
     continues below 0 or above 360, so 350 -> 10 deg reads 350 .. 370), ``speed_min_mps`` / ``speed_max_mps``
-    and ``voyage_mean_abs_course_rate_deg_s`` (mean |Δχ|/Δt, None for a single sample); over the whole run:
-    ``longest_stop_s`` (:func:`longest_stop` at :data:`STOP_SPEED_MPS`)."""
+    and ``voyage_mean_abs_course_rate_deg_s`` (mean |Δχ|/Δt, None for a single sample); over the whole run the
+    own-ship's stops (:func:`psbmpc_jax.sim.stops.stop_metrics`: ``stops``, ``longest_stop_s``,
+    ``longest_stop_start_s``, ``stopped_time_s``)."""
     t = _check_t(t)
     own = _check_traj(own, "own", t.size)
     route = waypoints(route, "route", 2)
@@ -473,7 +452,7 @@ def voyage_metrics(t, own, route, arrival_radius=None) -> dict:
         "speed_min_mps": float(v[:, 3].min()),
         "speed_max_mps": float(v[:, 3].max()),
         "voyage_mean_abs_course_rate_deg_s": float(np.degrees(np.abs(rate)).mean()) if rate.size else None,
-        "longest_stop_s": longest_stop(t, own[:, 3]),
+        **stop_metrics(t, own[:, 3]),
     }
 
 
@@ -487,7 +466,8 @@ def _stats(values) -> dict:
 
 
 def run_metrics(t, own, targets, route, polygons, *, d_collision, ground_clearance, solve_times=None,
-                target_names=None, classify_range=None, arrival_radius=None):
+                target_names=None, classify_range=None, arrival_radius=None, evaluation=None, own_name="own-ship",
+                target_routes=None, target_arrival_radii=None):
     """Metrics of one closed-loop run, as a JSON-serialisable dict.
 
     Args:
@@ -499,7 +479,16 @@ def run_metrics(t, own, targets, route, polygons, *, d_collision, ground_clearan
         solve_times: optional ``[n_solves]`` planner wall times [s].
         target_names: optional n names (default ``"target_<i>"``).
         classify_range: [m] range at which each encounter is classified (:func:`encounter_type`); None
-            classifies at ``t[0]`` (the initial geometry).
+            classifies at ``t[0]`` (the initial geometry).  Not used when ``evaluation`` is given.
+        evaluation: an :class:`psbmpc_jax.evaltool.EvalParams`: classify each target's encounter as the COLREGS
+            evaluation tool does (:func:`psbmpc_jax.sim.situations.first_encounters`: the situation of the
+            first encounter, locked at its start, ``t_classified_s``), so that the metrics and the evaluation name
+            one situation; the compliance check then looks at the whole approach, from ``t[0]`` to the CPA (a
+            planner acts before the range falls within r_stage2).  The simulator passes the scenario's
+            ``evaluation`` section.
+        own_name: the own-ship's name in ``ships``.
+        target_routes, target_arrival_radii: per target its route ``[m, 2]`` and acceptance radius [m], for its
+            arrival in ``ships`` (None: not judged).
         arrival_radius: [m] >= 0, the voyage ends at the first sample this close to the last waypoint (the
             simulator passes the own-ship's acceptance radius R_a); None: the voyage is the whole run and
             ``voyage_time_s`` is None.
@@ -510,8 +499,11 @@ def run_metrics(t, own, targets, route, polygons, *, d_collision, ground_clearan
         "path_deviation_mean_m", "path_deviation_max_m", "mean_abs_course_rate_deg_s", "solve_time_mean_s",
         "solve_time_max_s", "solve_time_p95_s", "n_solves"}`` and the :func:`voyage_metrics` (``arrived``,
         ``voyage_time_s``, ``path_length_m``, ``course_min_deg``, ``course_max_deg``, ``speed_min_mps``,
-        ``speed_max_mps``, ``voyage_mean_abs_course_rate_deg_s``); None where a quantity does not exist (no
-        land, no solves, a single sample, no arrival).
+        ``speed_max_mps``, ``voyage_mean_abs_course_rate_deg_s``) with the own-ship's stops (``stops``,
+        ``longest_stop_s``, ``longest_stop_start_s``, ``stopped_time_s``), and ``ships``: per ship (own-ship
+        first) its stops and arrival (:func:`psbmpc_jax.sim.stops.ship_metrics`); None where a quantity does not
+        exist (no land, no solves, a single sample, no arrival).  Each target entry has ``situation``: the
+        evaluation tool's code (``HO``, ``CRGW``, ...; None without ``evaluation`` or without an encounter).
     """
     t = _check_t(t)
     K = t.size
@@ -535,16 +527,38 @@ def run_metrics(t, own, targets, route, polygons, *, d_collision, ground_clearan
         if len(names) != n:
             raise ValueError(f"target_names must have one name per target ({n}), got {len(names)}")
 
+    if evaluation is not None:
+        from .situations import first_encounters
+
+        found = first_encounters(t, own, tg, evaluation)
     per_target = []
     for i in range(n):
         d = _ranges(own, tg[i])
         k = int(np.argmin(d))
-        enc, t_cls = encounter_type(t, own, tg[i], classify_range)
-        comp = maneuver_compliance(t, own, tg[i], (enc, t_cls), route, d_collision=d_collision)
+        if evaluation is None:
+            enc, t_cls = encounter_type(t, own, tg[i], classify_range)
+            situation = None
+        else:    # the tool's situation; the check's window still runs from t[0] (a planner acts before r_stage2)
+            f = found[i]
+            enc, situation = f["encounter"], f["situation"]
+            t_cls = float("nan") if f["t_start_s"] is None or enc == "none" else f["t_start_s"]
+        window = (enc, t_cls) if evaluation is None else (enc, float(t[0]))
+        comp = maneuver_compliance(t, own, tg[i], window, route, d_collision=d_collision)
+        if situation == "NAR":
+            comp["reason"] = "no applicable COLREGS rule at any sample of the encounter (EvalTool situation NAR)"
+        elif evaluation is not None and situation is None:
+            comp["reason"] = (f"no encounter: the target never came within the evaluation's r_stage2 "
+                              f"({evaluation.r_stage2_m:g} m)")
         per_target.append({"name": names[i], "min_distance_m": float(d[k]), "t_cpa_s": float(t[k]),
-                           "collision": bool(d[k] < d_collision), "encounter": enc,
+                           "collision": bool(d[k] < d_collision), "encounter": enc, "situation": situation,
                            "t_classified_s": _json_float(t_cls), "compliant": comp["compliant"],
                            "compliance": comp})
+    if target_routes is None:
+        target_routes, target_arrival_radii = [None] * n, [None] * n
+    elif target_arrival_radii is None or len(target_routes) != n or len(target_arrival_radii) != n:
+        raise ValueError(f"target_routes and target_arrival_radii need one entry per target ({n})")
+    ships = ship_metrics(t, np.concatenate([own[None], tg], axis=0), [str(own_name)] + names,
+                         [route] + list(target_routes), [arrival_radius] + list(target_arrival_radii))
 
     land = distance_to_land(own[:, :2], polygons)
     min_land = _json_float(land.min()) if land.size else None
@@ -571,6 +585,7 @@ def run_metrics(t, own, targets, route, polygons, *, d_collision, ground_clearan
         "solve_time_p95_s": float(np.percentile(st, 95)) if st.size else None,
         "n_solves": int(st.size),
         **voyage_metrics(t, own, route, arrival_radius),
+        "ships": ships,
     }
 
 
@@ -590,7 +605,9 @@ def aggregate(metrics) -> dict:
     the last waypoint), stats of ``voyage_time_s`` (over the runs that arrived), ``path_length_m``,
     ``voyage_mean_abs_course_rate_deg_s``, ``speed_min_mps`` and ``speed_max_mps``, and ``course_min_deg`` /
     ``course_max_deg`` / ``speed_min_mps`` / ``speed_max_mps`` / ``longest_stop_s`` stats (run dicts without them
-    are skipped).
+    are skipped); the own-ship's ``stops_total`` and ``runs_with_stops``, and ``ships``: per ship its stops and
+    arrival over the runs (:func:`psbmpc_jax.sim.stops.aggregate_ships`; None when a run dict has no ``ships``).
+    Per target also ``situations``: counts by the evaluation tool's code (``"none"`` without one).
     """
     if isinstance(metrics, dict) or not isinstance(metrics, Sequence):
         raise ValueError("metrics must be a list of run_metrics dicts")
@@ -619,11 +636,15 @@ def aggregate(metrics) -> dict:
     for name, entries in groups.items():
         r, n_eval, n_ok = rate(entries)
         encounters: dict[str, int] = {}
+        situations: dict[str, int] = {}
         for p in entries:
             encounters[p["encounter"]] = encounters.get(p["encounter"], 0) + 1
+            sit = p.get("situation") or "none"
+            situations[sit] = situations.get(sit, 0) + 1
         per_target.append({"name": name, "min_distance_m": _stats(p["min_distance_m"] for p in entries),
                            "collisions": int(sum(p["collision"] for p in entries)), "compliance_rate": r,
-                           "n_compliance_evaluated": n_eval, "n_compliant": n_ok, "encounters": encounters})
+                           "n_compliance_evaluated": n_eval, "n_compliant": n_ok, "encounters": encounters,
+                           "situations": situations})
     all_entries = [p for e in groups.values() for p in e]
     r_all, n_eval_all, n_ok_all = rate(all_entries)
 
@@ -652,6 +673,9 @@ def aggregate(metrics) -> dict:
         "solve_time_p95_s_max": float(max(p95s)) if p95s else None,
         "n_solves": int(total),
         "arrived_runs": int(sum(1 for m in metrics if m.get("arrived"))),
+        "stops_total": int(sum(m.get("stops", 0) for m in metrics)),
+        "runs_with_stops": int(sum(1 for m in metrics if m.get("stops"))),
+        "ships": aggregate_ships([m["ships"] for m in metrics]) if all("ships" in m for m in metrics) else None,
         **{key: _stats(m.get(key) for m in metrics)
            for key in ("voyage_time_s", "path_length_m", "course_min_deg", "course_max_deg", "speed_min_mps",
                        "speed_max_mps", "voyage_mean_abs_course_rate_deg_s", "longest_stop_s")},

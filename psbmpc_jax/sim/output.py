@@ -1,29 +1,35 @@
-"""Write a simulation's results: ``metrics.json`` (summary + per-run metrics + provenance), ``summary.md``,
-the figures of :mod:`psbmpc_jax.sim.plots` and, on request, every run's trajectories
-(``trajectories.csv`` / ``trajectories.npz``, read back with :func:`load_trajectories`)."""
+"""Write a simulation's results into a run folder: ``metrics.json`` (summary + per-run metrics + provenance),
+``summary.md``, the figures of :mod:`psbmpc_jax.sim.plots`, on request every run's trajectories
+(``trajectories.csv`` / ``trajectories.npz``, read back with :func:`load_trajectories`), and ``manifest.json``
+last (:mod:`psbmpc_jax.runfolder`: run id, files with sizes and hashes, completeness).  Every file is
+written atomically; a folder that holds another run is replaced only with ``force`` and then exactly that
+run's files go."""
 
 from __future__ import annotations
 
-import csv
 import datetime as _dt
 import json
+import logging
 import math
 import pathlib
-from dataclasses import dataclass
 
 import numpy as np
 
 from ..provenance import commit, versions
+from ..safe_io import atomic_write_text
+from ..runfolder import MANIFEST, RunFolderError, RunWriter, verify_member
+from .trajectories import (CSV_DIGITS, TRAJECTORY_SCHEMA, Trajectories, load_trajectories, write_trajectories,
+                           write_trajectory_files)
 
 SCHEMA = "psbmpc-sim/1"
-#: Schema id of ``trajectories.npz`` (and of the column layout of ``trajectories.csv``).
-TRAJECTORY_SCHEMA = "psbmpc-traj/1"
 #: Significant digits of the measured numbers in ``metrics.json`` (the scenario's settings are written exactly).
 METRICS_DIGITS = 6
 
-__all__ = ["SCHEMA", "TRAJECTORY_SCHEMA", "METRICS_DIGITS", "Trajectories", "write_outputs", "write_index",
-           "write_trajectories", "load_trajectories", "summary_markdown", "scenario_info", "provenance",
-           "metrics_document", "colregs_evaluation", "evaluation_markdown"]
+__all__ = ["SCHEMA", "TRAJECTORY_SCHEMA", "METRICS_DIGITS", "CSV_DIGITS", "Trajectories", "write_outputs",
+           "write_index", "write_trajectories", "load_trajectories", "summary_markdown", "scenario_info",
+           "provenance", "metrics_document", "colregs_evaluation", "evaluation_markdown", "stops_markdown"]
+
+log = logging.getLogger(__name__)
 
 
 def round_sig(v: float, digits: int) -> float:
@@ -62,6 +68,7 @@ def scenario_info(sc) -> dict:
                 "n_ps": sc.mpc.n_ps, "n_cbs": int(len(sc.mpc.behaviours)), "config": vars(sc.mpc.config).copy(),
                 "params": p.as_dict(), **method_settings(sc)},
         "sensor": vars(sc.sensor).copy(),
+        "evaluation": sc.evaluation.as_dict(),
         "chart": sc.chart_info,
         "ships": [{"name": s.name, "colav": s.colav, "length_m": s.length, "width_m": s.width,
                    "U_d_mps": s.U_d, "start_m": s.position, "course_deg": math.degrees(s.course),
@@ -105,9 +112,14 @@ SUMMARY_PENALTIES = ("P_delay", "P_na_delta", "P_nsb", "P_sts", "P_ah13", "P_ah1
 
 
 def evaluation_markdown(ev: dict) -> list[str]:
-    """The ``summary.md`` lines of :func:`colregs_evaluation`: one row per target."""
+    """The ``summary.md`` lines of :func:`colregs_evaluation`: one row per target (or the error that stopped
+    the evaluation)."""
+    head = "## COLREGS evaluation (EvalTool, Hagen et al. 2023 reconstructed; docs/evaltool.md)"
+    if "error" in ev:
+        return [head, "", f"**The evaluation failed:** {ev['error']}. The simulation's results above and in "
+                          f"metrics.json are complete; score the trajectories later with psbmpc-jax evaluate.", ""]
     agg = ev["aggregate"]
-    lines = ["## COLREGS evaluation (EvalTool, Hagen et al. 2023 reconstructed; docs/evaltool.md)", "",
+    lines = [head, "",
              f"Own-ship against each target, scores in [0, 1] (1 best), mean (min) over the encounters where they "
              f"apply; stages at {ev['params']['r_stage2_m']:g} / {ev['params']['r_stage3_m']:g} / "
              f"{ev['params']['r_stage4_m']:g} m, CPA ranges r_pref {ev['params']['r_pref_m']:g}, r_min "
@@ -141,6 +153,17 @@ def _fmt(v, nd=1):
     return "—" if v is None else (f"{v:.{nd}f}" if isinstance(v, float) else str(v))
 
 
+def _own_stops_line(s: dict) -> str:
+    own = (s.get("ships") or [None])[0]
+    if own is None:
+        return f"- own-ship arrived in {s.get('arrived_runs', 0)} of {s['runs']} runs"
+    ls = own["longest_stop"]
+    longest = "" if ls is None else f", longest {ls['s']:.1f} s (run {ls['run']}, from t = {ls['start_s']:.1f} s)"
+    arrived = "n/a" if own["arrived_runs"] is None else f"{own['arrived_runs']} of {own['runs']} runs"
+    return (f"- **own-ship stops: {own['stops_total']} in {own['runs_with_stops']} of {own['runs']} runs{longest}; "
+            f"arrived at its last waypoint: {arrived}**")
+
+
 def summary_markdown(result, evaluation: dict | None = None) -> str:
     """``summary.md``: the settings, the safety figures per target and the COLREGS evaluation
     (``evaluation``: :func:`colregs_evaluation` of ``result``, computed when not given)."""
@@ -158,6 +181,7 @@ def summary_markdown(result, evaluation: dict | None = None) -> str:
              f"- **own-ship collisions: {s['collisions']} of {s['runs']} runs; groundings: {s['groundings']}**; "
              f"runs where any pair of ships collided: {s['pair_collision_runs']}; runs where any ship grounded: "
              f"{s['any_ship_groundings']}",
+             _own_stops_line(s),
              f"- device: {s['device']} ({s['platform']}), batch mode `{s['batch_mode']}`, "
              f"{s.get('mpc_solves_total', s.get('solves'))} solves in "
              f"{s['device_calls']} device calls ({s['mpc_updates']} MPC updates), median amortised solve time "
@@ -169,14 +193,20 @@ def summary_markdown(result, evaluation: dict | None = None) -> str:
     if s.get("chart_clip_exceeded"):
         lines += ["**Warning:** a ship came so far from the routes that its predictions reached beyond the land "
                   "kept by `chart.clip_m`; raise `clip_m`.", ""]
-    lines += ["| target | encounter | min distance [m] (min / median / max over runs) | collisions | COLREGS maneuver matched |",
+    lines += ["| target | situation (EvalTool; first encounter, runs) | min distance [m] (min / median / max over "
+              "runs) | collisions | simple manoeuvre check passed |",
               "|---|---|---|---|---|"]
     for tg in s["targets"]:                       # the aggregate over runs (sim.metrics.aggregate)
         d = tg["min_distance_m"]
         judged = tg["n_compliance_evaluated"]
         comp_txt = f"{tg['n_compliant']}/{judged}" if judged else "n/a"
-        lines.append(f"| {tg['name']} | {', '.join(sorted(tg['encounters']))} | {d['min']:.1f} / {d['median']:.1f} / "
-                     f"{d['max']:.1f} | {tg['collisions']} | {comp_txt} |")
+        sits = tg.get("situations") or tg["encounters"]
+        lines.append(f"| {tg['name']} | {', '.join(f'{k}: {v}' for k, v in sorted(sits.items()))} | {d['min']:.1f} / "
+                     f"{d['median']:.1f} / {d['max']:.1f} | {tg['collisions']} | {comp_txt} |")
+    lines += ["", "Situations as the COLREGS evaluation below classifies them (HO head-on, CRGW / CRSO crossing "
+                  "give-way / stand-on, OTGW overtaking, OTSO overtaken, NAR no applicable rule; none: never within "
+                  "its r_Stage2). The simple check judges the own-ship's first course alteration and passing "
+                  "against that situation (docs/simulation.md)."]
     if sc.polygons:
         d = s["min_distance_land_m"]
         lines += ["", f"Minimum own-ship distance to land over runs: {d['min']:.1f} m (median {d['median']:.1f} m)."]
@@ -192,8 +222,32 @@ def summary_markdown(result, evaluation: dict | None = None) -> str:
                   f"path length {rng('path_length_m')} m; course {_fmt(s['course_min_deg']['min'])}–"
                   f"{_fmt(s['course_max_deg']['max'])} deg, speed {_fmt(s['speed_min_mps']['min'], 2)}–"
                   f"{_fmt(s['speed_max_mps']['max'], 2)} m/s (extremes over runs).", ""]
+    lines += stops_markdown(s, sc)
     lines += evaluation_markdown(colregs_evaluation(result) if evaluation is None else evaluation)
     return "\n".join(lines)
+
+
+def stops_markdown(s: dict, sc) -> list[str]:
+    """The stops-and-arrival lines of ``summary.md`` from the summary's ``ships`` (every ship)."""
+    from .stops import STOP_MIN_DURATION_S, STOP_SPEED_MPS
+
+    ships = s.get("ships")
+    if not ships:
+        return []
+    lines = ["## Stops and arrival", "",
+             f"A stop: speed over ground at or below {STOP_SPEED_MPS:g} m/s for at least {STOP_MIN_DURATION_S:g} s; "
+             f"arrival: the first time within the ship's acceptance radius R_a of its last waypoint.", "",
+             "| ship | runs with a stop | stops | longest stop [s] (run, start) | arrived | arrival time [s] "
+             "(min / median / max) |", "|---|---|---|---|---|---|"]
+    for sh in ships:
+        ls = sh["longest_stop"]
+        longest = "—" if ls is None else f"{ls['s']:.1f} (run {ls['run']}, from t = {ls['start_s']:.1f} s)"
+        arr = sh["arrival_time_s"]
+        arrived = "n/a" if sh["arrived_runs"] is None else f"{sh['arrived_runs']} of {sh['runs']}"
+        at = "—" if not arr["n"] else f"{arr['min']:.1f} / {arr['median']:.1f} / {arr['max']:.1f}"
+        lines.append(f"| {sh['name']} | {sh['runs_with_stops']} of {sh['runs']} | {sh['stops_total']} | {longest} | "
+                     f"{arrived} | {at} |")
+    return lines + [""]
 
 
 def metrics_document(result, digits: int | None = METRICS_DIGITS, evaluation: dict | None = None) -> dict:
@@ -210,260 +264,85 @@ def metrics_document(result, digits: int | None = METRICS_DIGITS, evaluation: di
     return doc
 
 
+def safe_colregs_evaluation(result) -> dict:
+    """:func:`colregs_evaluation`, or ``{"error", "params"}`` when the evaluation fails: a scoring failure
+    never costs the simulation's results (they are written with the error stated)."""
+    try:
+        return colregs_evaluation(result)
+    except (ValueError, MemoryError, FloatingPointError) as exc:
+        log.warning("the COLREGS evaluation of %s failed: %s", result.scenario.name, exc)
+        return {"error": f"{type(exc).__name__}: {exc}", "params": result.scenario.evaluation.as_dict()}
+
+
 def write_outputs(result, out_dir, *, figures: bool = True, plot_runs=None, animate: bool = False,
-                  trajectories: bool = False) -> dict:
-    """Write ``metrics.json`` and ``summary.md``; unless ``figures=False`` the PNG figures of
-    :func:`psbmpc_jax.sim.plots.write_figures` for the runs ``plot_runs`` (default: run 0); with
+                  trajectories: bool = False, force: bool = False) -> dict:
+    """Write the run folder ``out_dir``: ``metrics.json`` and ``summary.md``; unless ``figures=False`` the PNG
+    figures of :func:`psbmpc_jax.sim.plots.write_figures` for the runs ``plot_runs`` (default: run 0); with
     ``animate=True`` an animation of each of those runs (GIF, and MP4 when ffmpeg is installed); with
-    ``trajectories=True`` every run's trajectories as ``trajectories.csv`` and ``trajectories.npz``.
-    Returns ``{name: path}``."""
-    out = pathlib.Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    evaluation = colregs_evaluation(result)
-    (out / "metrics.json").write_text(json.dumps(metrics_document(result, evaluation=evaluation), indent=1) + "\n")
-    (out / "summary.md").write_text(summary_markdown(result, evaluation))
-    paths = {"metrics": out / "metrics.json", "summary": out / "summary.md"}
-    if trajectories:
-        for p in write_trajectories(result, out):
-            paths[p.name] = p
-    if figures:
-        from .plots import write_figures
+    ``trajectories=True`` every run's trajectories as ``trajectories.csv`` and ``trajectories.npz``; and
+    ``manifest.json`` last (:mod:`psbmpc_jax.runfolder`).
 
-        for p in write_figures(result, out, runs=plot_runs):
-            paths[p.stem] = p
-    if animate:
-        from .plots import animate_run
+    Every file is staged first and moved in at the end, so a failure or a kill while the results are produced
+    leaves the folder as it was.  A folder that holds another run is refused unless ``force``; then exactly the
+    files of that run are replaced (files of no run are never touched).
 
-        runs = [0] if plot_runs is None else list(plot_runs)
-        for r in runs:
-            stem = "animation" if plot_runs is None else f"animation_run{r}"
-            for p in animate_run(result, r, out / f"{stem}.gif"):
-                paths[p.name] = p
-    return paths
-
-
-# ------------------------------------------------------------------------------------------- trajectories
-def _cost_names(result) -> tuple:
-    from .simulator import COST_NAMES
-
-    return tuple(COST_NAMES)[: result.best_costs.shape[-1]]
-
-
-def _csv_columns(cost_names) -> list[str]:
-    return (["run", "ship", "ship_name", "t_s", "north_m", "east_m", "course_deg", "speed_mps", "solve",
-             "speed_factor", "course_offset_deg", "solve_wall_s"] + [f"cost_{n}" for n in cost_names])
-
-
-#: Significant digits of the floats in trajectories.csv (the NPZ file keeps every bit).
-CSV_DIGITS = 12
-
-
-def _fmt_col(values) -> list[str]:
-    """Each float with CSV_DIGITS significant digits; empty for NaN (no solve at that row)."""
-    return ["" if v != v else format(v, f".{CSV_DIGITS}g") for v in np.asarray(values, dtype=float).tolist()]
-
-
-def write_trajectories(result, out_dir, formats=("csv", "npz")) -> list[pathlib.Path]:
-    """Write every run's trajectories into ``out_dir``: ``trajectories.csv`` and/or ``trajectories.npz``.
-
-    CSV (one row per run, ship and time step, run-major): ``run, ship, ship_name, t_s, north_m, east_m,
-    course_deg, speed_mps`` (the true states; course in degrees from north, clockwise; 12 significant
-    digits), then per solve --
-    filled on the rows of the steps at which that ship solved, empty elsewhere -- ``solve`` (1 or 0),
-    ``speed_factor``, ``course_offset_deg`` (the chosen first maneuver, applied until the next solve),
-    ``solve_wall_s`` and ``cost_<term>`` (``cost_total``, ``cost_do``, ``cost_colregs``, ``cost_so``,
-    ``cost_path``: the chosen behaviour's cost terms).
-
-    NPZ: the arrays of :class:`Trajectories` under the same names (course and offsets in radians), plus
-    ``schema`` = :data:`TRAJECTORY_SCHEMA`.  Read either with :func:`load_trajectories`.
-    """
-    formats = tuple(formats)
-    bad = [f for f in formats if f not in ("csv", "npz")]
-    if bad or not formats:
-        raise ValueError(f"formats must be a non-empty subset of ('csv', 'npz'), got {formats!r}")
-    out = pathlib.Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    tr = Trajectories.from_result(result)
-    paths = []
-    if "npz" in formats:
-        path = out / "trajectories.npz"
-        np.savez_compressed(path, schema=np.array(TRAJECTORY_SCHEMA), scenario=np.array(tr.scenario or ""),
-                            t=tr.t, ship_names=np.array(tr.ship_names), states=tr.states, solve_t=tr.solve_t,
-                            offsets=tr.offsets, costs=tr.costs, cost_names=np.array(tr.cost_names),
-                            solve_wall=tr.solve_wall)
-        paths.append(path)
-    if "csv" in formats:
-        path = out / "trajectories.csv"
-        R, S, K1, _ = tr.states.shape
-        n = R * S * K1
-        run = np.repeat(np.arange(R), S * K1)
-        ship = np.tile(np.repeat(np.arange(S), K1), R)
-        step = np.tile(np.arange(K1), R * S)
-        # per-solve columns on the rows of the solve steps (of the ships that solved)
-        solve_cols = np.full((n, 3 + len(tr.cost_names)), np.nan)
-        solved = np.zeros(n, dtype=int)
-        if tr.solve_t.size:
-            steps = np.searchsorted(tr.t, tr.solve_t)
-            per = np.concatenate([tr.offsets[..., :1], np.degrees(tr.offsets[..., 1:]), tr.solve_wall[..., None],
-                                  tr.costs], axis=-1)                              # [R, S, M, 3 + C]
-            rows = (np.arange(R)[:, None, None] * S + np.arange(S)[None, :, None]) * K1 + steps[None, None, :]
-            has = np.isfinite(tr.offsets[..., 0])
-            solve_cols[rows[has]] = per[has]
-            solved[rows[has]] = 1
-        st = tr.states.reshape(n, 4)
-        names = np.asarray(tr.ship_names, dtype=object)[ship]
-        cols = [[str(v) for v in run.tolist()], [str(v) for v in ship.tolist()], names.tolist(),
-                _fmt_col(tr.t[step]), _fmt_col(st[:, 0]), _fmt_col(st[:, 1]), _fmt_col(np.degrees(st[:, 2])),
-                _fmt_col(st[:, 3]), [str(v) for v in solved.tolist()]]
-        cols += [_fmt_col(solve_cols[:, j]) for j in range(solve_cols.shape[1])]
-        with open(path, "w", newline="", encoding="utf-8") as fh:
-            w = csv.writer(fh)
-            w.writerow(_csv_columns(tr.cost_names))
-            w.writerows(zip(*cols))
-        paths.append(path)
-    return paths
-
-
-@dataclass
-class Trajectories:
-    """Every run's trajectories of one simulation, as written by :func:`write_trajectories` (NumPy arrays;
-    NED metres, radians, seconds; ship 0 is the own-ship).
-
-    Attributes:
-        scenario: scenario name (None when read from a CSV file, which does not record it).
-        t: time of each step ``[K+1]`` [s].
-        ship_names: ``n_ships`` names.
-        states: true states ``[R, n_ships, K+1, 4]`` = (north, east, course, speed).
-        solve_t: time of each MPC update ``[M]`` [s].
-        offsets: chosen first maneuver per solve ``[R, n_ships, M, 2]`` = (speed factor, course offset), NaN
-            for ships without PSB-MPC.
-        costs: the chosen behaviour's cost terms per solve ``[R, n_ships, M, len(cost_names)]``.
-        cost_names: the cost columns (``total`` first, then the terms).
-        solve_wall: wall time of each solve ``[R, n_ships, M]`` [s].
-    """
-
-    scenario: str | None
-    t: np.ndarray
-    ship_names: list
-    states: np.ndarray
-    solve_t: np.ndarray
-    offsets: np.ndarray
-    costs: np.ndarray
-    cost_names: tuple
-    solve_wall: np.ndarray
-
-    @classmethod
-    def from_result(cls, result) -> "Trajectories":
-        """The trajectories of a :class:`~psbmpc_jax.sim.SimulationResult`."""
-        wall = result.solve_wall
-        if wall is None:
-            wall = np.full(result.offsets.shape[:-1], np.nan)
-        return cls(scenario=result.scenario.name, t=np.asarray(result.t, float),
-                   ship_names=[s.name for s in result.scenario.ships], states=np.asarray(result.states, float),
-                   solve_t=np.asarray(result.solve_t, float), offsets=np.asarray(result.offsets, float),
-                   costs=np.asarray(result.best_costs, float), cost_names=_cost_names(result),
-                   solve_wall=np.asarray(wall, float))
-
-    @property
-    def runs(self) -> int:
-        return int(self.states.shape[0])
-
-
-def load_trajectories(path) -> Trajectories:
-    """Read trajectories written by ``psbmpc-jax run --save-trajectories`` (:func:`write_trajectories`).
-
-    Args:
-        path: ``trajectories.npz``, ``trajectories.csv``, or the scenario's output folder holding one of them
-            (the NPZ file is preferred: it is exact and smaller).
-
-    Returns:
-        :class:`Trajectories` (course and course offsets in radians, also when read from the CSV file, whose
-        degrees are converted back).
+    Returns ``{name: path}`` (``metrics``, ``summary``, ``manifest``, and each other file by its name or stem).
 
     Raises:
-        FileNotFoundError: no such file, or a folder without trajectories.
-        ValueError: a file that is not a trajectory export (the message says what is expected).
+        OutputError: the folder cannot be written, or holds another run and ``force`` is False.
     """
-    p = pathlib.Path(path)
-    if p.is_dir():
-        for name in ("trajectories.npz", "trajectories.csv"):
-            if (p / name).is_file():
-                p = p / name
-                break
-        else:
-            raise FileNotFoundError(f"{p}: no trajectories.npz or trajectories.csv (write them with "
-                                    f"psbmpc-jax run --save-trajectories)")
-    if not p.is_file():
-        raise FileNotFoundError(f"trajectory file not found: {p}")
-    if p.suffix == ".npz":
-        return _load_npz(p)
-    if p.suffix == ".csv":
-        return _load_csv(p)
-    raise ValueError(f"{p}: expected a trajectories .npz or .csv file written by psbmpc-jax run "
-                     f"--save-trajectories")
+    writer = RunWriter(out_dir, force=force, meta={"scenario": result.scenario.name})
+    try:
+        keys = {}
+        if trajectories:       # the simulation's data first
+            tr = Trajectories.from_result(result)
+            written = write_trajectory_files(tr, {f: writer.path(f"trajectories.{f}") for f in ("csv", "npz")},
+                                             run_id=writer.run_id)
+            keys.update({p.name: p.name for p in written})
+        evaluation = safe_colregs_evaluation(result)
+        doc = metrics_document(result, evaluation=evaluation)
+        doc["run_id"] = writer.run_id
+        atomic_write_text(writer.path("metrics.json"), json.dumps(doc, indent=1) + "\n")
+        atomic_write_text(writer.path("summary.md"), summary_markdown(result, evaluation))
+        keys.update(metrics="metrics.json", summary="summary.md")
+        if figures:
+            from .plots import write_figures
 
+            made = write_figures(result, writer.staging, runs=plot_runs)
+            writer.adopt(made)
+            keys.update({p.stem: p.name for p in made})
+        if animate:
+            from .plots import animate_run
 
-def _load_npz(p: pathlib.Path) -> Trajectories:
-    with np.load(p, allow_pickle=False) as z:
-        schema = str(z["schema"]) if "schema" in z.files else None
-        if schema != TRAJECTORY_SCHEMA:
-            raise ValueError(f"{p}: not a {TRAJECTORY_SCHEMA} trajectory file (schema {schema!r}); expected the "
-                             f"trajectories.npz of psbmpc-jax run --save-trajectories")
-        return Trajectories(scenario=str(z["scenario"]) or None, t=z["t"], ship_names=[str(s) for s in z["ship_names"]],
-                            states=z["states"], solve_t=z["solve_t"], offsets=z["offsets"], costs=z["costs"],
-                            cost_names=tuple(str(s) for s in z["cost_names"]), solve_wall=z["solve_wall"])
-
-
-def _load_csv(p: pathlib.Path) -> Trajectories:
-    with open(p, newline="", encoding="utf-8") as fh:
-        reader = csv.reader(fh)
-        header = next(reader, None)
-        fixed = _csv_columns(())
-        if header is None or header[: len(fixed)] != fixed or not all(h.startswith("cost_") for h in header[len(fixed):]):
-            raise ValueError(f"{p}: not a {TRAJECTORY_SCHEMA} trajectory CSV; expected the header "
-                             f"{','.join(fixed)},cost_<term>... of psbmpc-jax run --save-trajectories")
-        rows = list(reader)
-    cost_names = tuple(h[len("cost_"):] for h in header[len(fixed):])
-    if not rows:
-        raise ValueError(f"{p}: the trajectory CSV has no rows")
-    cols = list(zip(*rows))
-
-    def num(j):
-        return np.array([float(v) if v != "" else np.nan for v in cols[j]])
-
-    run, ship = np.array(cols[0], dtype=int), np.array(cols[1], dtype=int)
-    t_all = num(3)
-    R, S = int(run.max()) + 1, int(ship.max()) + 1
-    t = np.unique(t_all)
-    K1 = t.size
-    if len(rows) != R * S * K1:
-        raise ValueError(f"{p}: expected {R} runs x {S} ships x {K1} steps = {R * S * K1} rows, got {len(rows)}")
-    step = np.searchsorted(t, t_all)
-    states = np.full((R, S, K1, 4), np.nan)
-    states[run, ship, step] = np.stack([num(4), num(5), np.radians(num(6)), num(7)], axis=1)
-    names = [""] * S
-    for s_idx, name in zip(ship.tolist(), cols[2]):
-        names[s_idx] = name
-    solved = np.array(cols[8], dtype=int) == 1
-    solve_t = np.unique(t_all[solved])
-    M = solve_t.size
-    per = np.stack([num(j) for j in range(9, len(header))], axis=1)            # [rows, 3 + C]
-    block = np.full((R, S, M, per.shape[1]), np.nan)
-    m = np.searchsorted(solve_t, t_all[solved])
-    block[run[solved], ship[solved], m] = per[solved]
-    offsets = np.stack([block[..., 0], np.radians(block[..., 1])], axis=-1)
-    return Trajectories(scenario=None, t=t, ship_names=names, states=states, solve_t=solve_t, offsets=offsets,
-                        costs=block[..., 3:], cost_names=cost_names, solve_wall=block[..., 2])
+            runs = [0] if plot_runs is None else list(plot_runs)
+            for r in runs:
+                stem = "animation" if plot_runs is None else f"animation_run{r}"
+                made = animate_run(result, r, writer.staging / f"{stem}.gif")
+                writer.adopt(made)
+                keys.update({p.name: p.name for p in made})
+        final = writer.commit()
+    except BaseException:
+        writer.abort()
+        raise
+    paths = {key: final[name] for key, name in keys.items()}
+    paths["manifest"] = writer.folder / MANIFEST
+    return paths
 
 
 def write_index(out_dir) -> pathlib.Path:
-    """``index.md`` over every ``*/metrics.json`` under ``out_dir``: one row per scenario with its method, runs,
-    collisions, groundings, the closest approach to any target and to land, COLREGS compliance and the
-    median amortised solve time."""
+    """``index.md`` over every run folder ``*/`` under ``out_dir`` whose run completed and whose metrics.json is
+    the one its manifest lists: one row per scenario with its method, runs, collisions, groundings, the closest
+    approach to any target and to land, COLREGS compliance, the median amortised solve time, the run id and
+    the commit.  Folders that fail the check are named below the table with the reason.  Written atomically."""
     out = pathlib.Path(out_dir)
-    rows = []
+    rows, skipped = [], []
     for path in sorted(out.glob("*/metrics.json")):
-        doc = json.loads(path.read_text())
+        try:
+            manifest = verify_member(path, require_manifest=True)
+            doc = json.loads(path.read_text(encoding="utf-8"))
+        except (RunFolderError, OSError, json.JSONDecodeError) as exc:
+            skipped.append(f"- `{path.parent.name}/`: {exc}")
+            continue
         s = doc["summary"]
         tmin = [t["min_distance_m"]["min"] for t in s["targets"] if t["min_distance_m"]["min"] is not None]
         land = s["min_distance_land_m"]["min"]
@@ -475,15 +354,18 @@ def write_index(out_dir) -> pathlib.Path:
             f"{s['collisions']} | {s['groundings']} | {s['pair_collision_runs']} | "
             + (f"{min(tmin):.1f}" if tmin else "—") + " | " + ("—" if land is None else f"{land:.1f}") + " | "
             + (f"{n_ok}/{n_eval}" if n_eval else "n/a") + " | "
-            + ("—" if solve is None else f"{1e3 * solve:.1f}") + f" | {doc.get('commit', '?')[:9]} |")
-    text = "\n".join([
+            + ("—" if solve is None else f"{1e3 * solve:.1f}") + f" | {manifest['run_id'][:8]} | "
+            f"{doc.get('commit', '?')[:9]} |")
+    lines = [
         "# Closed-loop results", "",
-        "Written by `psbmpc-jax run` (one folder per scenario: metrics.json, summary.md, figures). Collisions: "
-        "own-ship runs with a centre distance below the collision distance; pair collisions: runs in which two "
-        "ships of which one runs PSB-MPC collided; COLREGS: runs × targets whose encounter the own-ship's "
-        "manoeuvre matched, of those with an obligation (see docs/simulation.md).", "",
+        "Written by `psbmpc-jax run` (one run folder per scenario: metrics.json, summary.md, figures, "
+        "manifest.json). Collisions: own-ship runs with a centre distance below the collision distance; pair "
+        "collisions: runs in which two ships of which one runs PSB-MPC collided; COLREGS: runs × targets whose "
+        "first encounter passed the simple manoeuvre check, of those with an obligation (see docs/simulation.md).",
+        "",
         "| scenario | method | runs | targets | collisions | groundings | pair collisions | closest approach [m] | "
-        "closest to land [m] | COLREGS matched | solve [ms] | commit |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|", *rows, ""])
-    (out / "index.md").write_text(text)
-    return out / "index.md"
+        "closest to land [m] | COLREGS matched | solve [ms] | run | commit |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|", *rows, ""]
+    if skipped:
+        lines += ["Not listed (their results cannot be trusted as they are):", "", *skipped, ""]
+    return atomic_write_text(out / "index.md", "\n".join(lines))

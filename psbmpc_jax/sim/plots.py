@@ -11,6 +11,7 @@ import pathlib
 import numpy as np
 
 from ..plots import land_patch, plot_candidates
+from ..safe_io import OutputError, atomic_open, file_output_problem
 from ..situation import polygon_rings
 
 __all__ = ["SHIP_COLORS", "plot_map", "plot_distances", "plot_course_speed", "plot_course_speed_compare",
@@ -308,12 +309,16 @@ def write_figures(result, out_dir, run: int = 0, dpi: int = 120, *, runs=None) -
     for r in chosen:
         _check_run(result, r)
     out = pathlib.Path(out_dir)
+    problem = file_output_problem(out / "monte_carlo.png")      # a file in the way, no permission: say so
+    if problem:
+        raise OutputError(f"write_figures: {problem}")
     out.mkdir(parents=True, exist_ok=True)
     paths = []
 
     def save(fig, name):
         fig.tight_layout()
-        fig.savefig(out / name, dpi=dpi)
+        with atomic_open(out / name, "wb") as fh:               # complete or absent, never a partial PNG
+            fig.savefig(fh, dpi=dpi, format="png")
         plt.close(fig)
         paths.append(out / name)
 
@@ -354,6 +359,9 @@ def animate_run(result, run: int = 0, path="animation.gif", *, fps: int = 10, ma
         raise ValueError(f"max_frames must be >= 2, got {max_frames}")
     sc = result.scenario
     path = pathlib.Path(path)
+    problem = file_output_problem(path)
+    if problem:
+        raise OutputError(f"animate_run: {problem}")
     path.parent.mkdir(parents=True, exist_ok=True)
     states = result.states[run]
     xy = states[..., :2]

@@ -525,7 +525,9 @@ def run_metrics(result: SimulationResult, r: int) -> dict:
     out = metrics_mod.run_metrics(
         result.t, states[0], states[1:], sc.own_ship.waypoints, sc.polygons, d_collision=sc.d_collision,
         ground_clearance=0.5 * sc.own_ship.width, solve_times=own_solves or None,
-        target_names=[s.name for s in sc.targets], classify_range=None, arrival_radius=sc.own_ship.R_a)
+        target_names=[s.name for s in sc.targets], arrival_radius=sc.own_ship.R_a, evaluation=sc.evaluation,
+        own_name=sc.own_ship.name, target_routes=[s.waypoints for s in sc.targets],
+        target_arrival_radii=[s.R_a for s in sc.targets])
     out["run"] = r
     out["solve_times_s"] = own_solves
     ships = sc.ships
