@@ -270,6 +270,13 @@ def test_bad_arguments_name_the_argument():
         generate_encounter("head_on", seed=0, chart="trondheim")
     with pytest.raises(ValueError, match="prefix must be"):
         generate_encounters("head_on", 1, seed=0, prefix="../x")
+    ctx = prepare("head_on")
+    with pytest.raises(ValueError, match="give either context"):
+        generate_encounter("head_on", seed=0, context=ctx, settings="open_sea")
+    with pytest.raises(ValueError, match="differ from the context's"):
+        generate_encounter("overtaking", seed=0, context=ctx)
+    with pytest.raises(ValueError, match="max_tries must be"):
+        generate_encounter("head_on", seed=0, context=ctx, max_tries=0)
 
 
 def test_settings_from_a_mapping_merge_into_the_preset():

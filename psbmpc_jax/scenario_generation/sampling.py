@@ -378,7 +378,7 @@ def _max_tries(v) -> int:
     return int(v)
 
 
-def generate_encounter(types, *, seed: int, index: int = 0, settings="harbour", chart=None, base_dir=None,
+def generate_encounter(types, *, seed: int, index: int = 0, settings=None, chart=None, base_dir=None,
                        name: str | None = None, validate: bool = True, max_tries: int = MAX_TRIES,
                        context: GenerationContext | None = None) -> GeneratedEncounter:
     """One encounter: the own-ship and one target per entry of ``types``, drawn from
@@ -388,21 +388,32 @@ def generate_encounter(types, *, seed: int, index: int = 0, settings="harbour", 
         types: an encounter type of :data:`~psbmpc_jax.scenario_generation.ENCOUNTER_TYPES` or a list, one per
             target (``["head_on", "crossing_give_way"]``).
         seed, index: the random stream (encounter ``index`` of a batch with this seed).
-        settings: a preset name (``"harbour"``, ``"open_sea"``) or :class:`GenerationSettings`.
+        settings: a preset name (``"harbour"``, ``"open_sea"``) or :class:`GenerationSettings` (default
+            ``"harbour"``).
         chart: open water (None), a scenario ``chart`` section, or a Chart (see :func:`prepare`).
         base_dir: folder a ``chart.file`` path is relative to.
         name: the scenario's name (default ``<type>_<index:04d>``).
         validate: load the mapping with :func:`psbmpc_jax.scenario.scenario_from_dict` (land checks as errors) and
             redraw if it refuses (counted as ``loader``).
         max_tries: bound on the draws (own-ship and targets together).
-        context: a :func:`prepare` result to reuse (then ``types``, ``settings``, ``chart``, ``base_dir`` are
-            taken from it).
+        context: a :func:`prepare` result to reuse (it holds the settings, chart and base_dir, so those are not
+            given; ``types`` must be its types).
 
     Raises:
         ValueError: bad arguments or settings (naming the field), or no encounter within ``max_tries`` draws
             (with the rejection counts).
     """
-    ctx = context if context is not None else prepare(types, settings, chart, base_dir)
+    if context is None:
+        ctx = prepare(types, "harbour" if settings is None else settings, chart, base_dir)
+    else:
+        if not isinstance(context, GenerationContext):
+            raise ValueError(f"context must be a GenerationContext (from prepare), got {type(context).__name__}")
+        if settings is not None or chart is not None or base_dir is not None:
+            raise ValueError("give either context (it holds the settings, chart and base_dir) or settings / chart / "
+                             "base_dir, not both")
+        if _types(types) != context.types:
+            raise ValueError(f"types {_types(types)} differ from the context's {context.types}")
+        ctx = context
     seed, max_tries = _seed(seed), _max_tries(max_tries)
     if isinstance(index, bool) or not isinstance(index, (int, np.integer)) or index < 0:
         raise ValueError(f"index must be an integer >= 0, got {index!r}")
