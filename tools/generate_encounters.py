@@ -28,6 +28,13 @@ from psbmpc_jax.scenario_generation import (ENCOUNTER_TYPES, PRESETS, SITUATION_
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="generate_encounters", description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_generate_arguments(ap)
+    return ap
+
+
+def add_generate_arguments(ap: argparse.ArgumentParser) -> None:
+    """The options (also what a ``psbmpc-jax generate`` subcommand would take: ``add_generate_arguments`` on its
+    subparser and :func:`run` on the parsed arguments)."""
     ap.add_argument("types", nargs="+", choices=ENCOUNTER_TYPES, metavar="TYPE",
                     help=f"encounter type of each target: {', '.join(ENCOUNTER_TYPES)}")
     ap.add_argument("--count", type=int, default=1, help="number of scenario files (default 1)")
@@ -46,7 +53,6 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--max-tries", type=int, default=20_000, help="draws per encounter before giving up")
     ap.add_argument("--overwrite", action="store_true", help="replace existing files (and the previous batch's)")
     ap.add_argument("--check", action="store_true", help="load every file and classify its straight tracks")
-    return ap
 
 
 def _settings(args):
