@@ -168,3 +168,46 @@ def test_the_scenario_file_selects_and_validates_the_remedy():
         PlannerConfig(stop_remedy=None)
     with pytest.raises(ValueError, match="stop_remedy must be one of"):
         ref_mod.colregs_violation(np.zeros((1, 4)), np.ones((1, 4)), Params(), stop_remedy="on")
+
+
+# ============================================================================ closed loop
+def test_closed_loop_a_stopping_give_way_ship_does_not_escape_colregs_with_the_remedy():
+    """The congested-traffic scenario (``tengesdal2020_b``), ``psbmpc_2020``, its first 30 s: with the published
+    cost the own-ship stops from the 15 s update on and the stop behaviour it picks carries no COLREGS cost at the
+    updates where it is nearly stopped (the loophole); with the remedy the same stop behaviour carries COLREGS cost
+    there and the own-ship sets off again before 30 s."""
+    import dataclasses
+
+    from psbmpc_jax.scenario import load_scenario
+    from psbmpc_jax.sim import simulate
+
+    seen = {}
+    for remedy in STOP_REMEDIES:
+        sc = load_scenario("tengesdal2020_b")
+        sc = dataclasses.replace(sc, duration=30.0, mpc=dataclasses.replace(
+            sc.mpc, config=sc.mpc.config.replace(stop_remedy=remedy)))
+        import psbmpc_jax.methods.grid as grid
+
+        original, evals = grid.solve, []
+
+        def recording(*a, **kw):
+            out = original(*a, **kw)
+            evals.append((np.asarray(out[2].total), np.asarray(out[2].details["psbmpc2020_colregs_i"])))
+            return out
+
+        grid.solve = recording
+        try:
+            res = simulate(sc, runs=1, progress=False, batch="loop")
+        finally:
+            grid.solve = original
+        beh = np.asarray(sc.mpc.behaviours)
+        stop_0 = int(np.flatnonzero((beh[:, 0, 0] == 0.0) & (beh[:, 0, 1] == 0.0))[0])
+        k = np.searchsorted(res.t, res.solve_t)
+        seen[remedy] = dict(u=res.offsets[0, 0, :, 0], speed=res.states[0, 0, k, 3],
+                            stop_colregs=np.array([c[stop_0].sum() for _, c in evals]))
+    paper, fixed = seen["none"], seen["colregs_heading"]
+    slow = paper["speed"] < 3.5                                    # the updates at 20 s and 25 s
+    assert slow.sum() >= 2 and np.all(paper["u"][slow] == 0.0)     # the published cost keeps it stopping ...
+    assert np.all(paper["stop_colregs"][slow] == 0.0)              # ... where stopping is free of COLREGS
+    assert np.all(fixed["stop_colregs"][slow] > 0.0)               # the remedy charges the same stop
+    assert np.any(fixed["u"][slow] > 0.0) and fixed["speed"][-1] > 2.0    # and the own-ship sets off again
