@@ -13,7 +13,8 @@ lines.  ``--runs`` runs per draw (measurement and target-motion noise from ``[se
 
 Variants (``--variants``): ``paper`` (the published cost), ``colregs_heading`` (``mpc.config.stop_remedy:
 colregs_heading``), ``free_speed_change`` (the published cost with K_Δu = 0: setting off again costs nothing, a
-stand-in for a restart rule) and ``both``.
+stand-in for a restart rule) and ``both``; as a sensitivity (not the paper's tuning) ``paper_Tc30`` and
+``colregs_heading_Tc30``, the collision discount T_c = 30 s in place of Table 1's 6 s.
 
 Per (variant, draw, run): collision (the simulator's metric: closest approach below the scenario's collision
 distance, 30 m), closest approach [m], the stops (speed <= 0.2 m/s: count, longest, first), mean |course rate|.
@@ -44,7 +45,9 @@ from common import STOP_FACTOR, Recorder, course_rate, cv_noise_method, min_targ
 
 STUDY = pathlib.Path(__file__).resolve().parent
 VARIANTS = {"paper": ("none", {}), "colregs_heading": ("colregs_heading", {}),
-            "free_speed_change": ("none", {"Delta_U": 0.0}), "both": ("colregs_heading", {"Delta_U": 0.0})}
+            "free_speed_change": ("none", {"Delta_U": 0.0}), "both": ("colregs_heading", {"Delta_U": 0.0}),
+            # sensitivity, not the paper's tuning: the collision discount T_c = 30 s instead of Table 1's 6 s
+            "paper_Tc30": ("none", {"T_c_s": 30.0}), "colregs_heading_Tc30": ("colregs_heading", {"T_c_s": 30.0})}
 
 
 def scenario_dict(draw: int, colav: str) -> dict:
