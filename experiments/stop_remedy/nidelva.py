@@ -45,11 +45,43 @@ def rows_of(res) -> list[dict]:
     return rows
 
 
+def decomposition(variant: str, runs: int, method: str) -> dict:
+    """Every own-ship solve of ``runs`` runs (loop mode): where the search chose a stop, the stop's cost per term
+    against the cheapest moving behaviour (:func:`stop_analysis.why_stop`), split by whether the own-ship was
+    already stopped."""
+    sys.path.insert(0, str(STUDY.parent / "nidelva_refinement"))
+    from common import Recorder
+    from stop_analysis import first_maneuver_stops, why_stop
+
+    from psbmpc_jax.scenario import load_scenario
+    from psbmpc_jax.sim import simulate
+
+    sc = load_scenario("nidelva", method=method)
+    sc = dataclasses.replace(sc, mpc=dataclasses.replace(sc.mpc, config=sc.mpc.config.replace(stop_remedy=VARIANTS[variant])))
+    with Recorder() as rec:
+        res = simulate(sc, runs=runs, progress=False, batch="loop")
+    n_ships = sum(s.colav != "none" for s in sc.ships)
+    M = len(res.solve_t)
+    if len(rec.seen) != M * runs * n_ships or sc.ships[0].colav == "none":
+        raise RuntimeError(f"expected {M * runs * n_ships} solves, recorded {len(rec.seen)}")
+    own = [rec.seen[(m * runs + r) * n_ships] for m in range(M) for r in range(runs)]        # ship 0 first per run
+    beh = np.asarray(sc.mpc.behaviours)
+    best = np.array([int(np.argmin(t[: len(beh)])) for t, _, _ in own]).reshape(M, runs)
+    k = np.searchsorted(res.t, res.solve_t)
+    stopped = res.states[:, 0, k, 3].T <= 0.2
+    return {"runs": runs, "grid_chose_stop_updates": int(first_maneuver_stops(beh)[best].sum()),
+            "longest_stop_s": [stop_stats(res.t, res.states[r, 0, :, 3])["longest_s"] for r in range(runs)],
+            "why_the_grid_stops": why_stop([(t, c) for t, c, _ in own], beh, best, stopped)}
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--runs", type=int, default=20)
     p.add_argument("--method", default="psbmpc", choices=("psbmpc", "psbmpc_refine"))
     p.add_argument("--variants", default="paper,colregs_heading", help=f"comma-separated, of {', '.join(VARIANTS)}")
+    p.add_argument("--decompose", type=int, default=0, metavar="R",
+                   help="instead: the stop decomposition of the first R runs of each variant (loop mode; "
+                        "experiments/nidelva_refinement/stop_analysis.py's why_stop on the grid search)")
     p.add_argument("--out", default=None, help="output JSON (default results/nidelva_<UTC stamp>.json)")
     p.add_argument("--force", action="store_true", help="write over an existing --out file")
     args = p.parse_args(argv)
@@ -67,6 +99,9 @@ def main(argv=None) -> int:
     started_at, t_all = commit(), time.perf_counter()
     doc = {"what": __doc__.split("\n\n")[0], "scenario": "nidelva", "method": args.method, "runs": args.runs,
            "stop_speed_m_s": 0.2, "results": {}}
+    if args.decompose:
+        doc["decomposition"] = {v: decomposition(v, args.decompose, args.method) for v in variants}
+        variants = []
     for v in variants:
         sc = load_scenario("nidelva", method=args.method)
         sc = dataclasses.replace(sc, mpc=dataclasses.replace(
