@@ -27,6 +27,9 @@ import numpy as np
 from .layouts import GROUNDING_SEARCHES, LAYOUT_PLATFORMS, PC_LAYOUTS, ROLLOUT_KERNELS
 
 ESTIMATORS = ("quadrature", "mc", "ce")
+#: ``PlannerConfig.stop_remedy`` values (:mod:`psbmpc_jax.costs.colregs`): the published COLREGS indicator, or
+#: the indicator on the own-ship's heading whatever its speed.
+STOP_REMEDIES = ("none", "colregs_heading")
 DTYPES = ("float32", "float64")
 
 #: Most prediction steps ``T / dt`` a :class:`PlannerConfig` may have.
@@ -89,6 +92,11 @@ class PlannerConfig:
             ``"cpu"`` or ``"gpu"`` (:mod:`psbmpc_jax.layouts`; :meth:`for_platform`).
         grid_spacing, grid_margin: grid resolution [m] and the margin around the polygons [m] (outside it the
             distance is taken as ``grid_margin``).
+        stop_remedy: the stop loophole of the Boolean COLREGS indicator (a stopped own-ship never violates, so
+            stopping escapes the COLREGS cost): ``"none"`` (default: the papers' cost as published) or
+            ``"colregs_heading"`` (the indicator evaluated on the own-ship's heading whatever its speed: a stopped
+            give-way ship still violates; :mod:`psbmpc_jax.costs.colregs`, docs/methods/psbmpc.md).  Read by the
+            ``psbmpc`` and ``psbmpc_2020`` COLREGS terms.
     """
 
     T: float = 150.0
@@ -109,6 +117,7 @@ class PlannerConfig:
     rollout_unroll: int | str = "auto"
     rollout_kernel: str = "auto"
     layout_platform: str = "auto"
+    stop_remedy: str = "none"
 
     def __post_init__(self) -> None:
         for name in _CONFIG_FLOATS:
@@ -130,7 +139,8 @@ class PlannerConfig:
                              f"{MAX_HORIZON_STEPS} allowed (T={self.T} s, dt={self.dt} s)")
         for name, allowed in (("estimator", ESTIMATORS), ("dtype", DTYPES), ("grounding_mode", ("exact", "grid")),
                               ("grounding_search", GROUNDING_SEARCHES), ("pc_layout", PC_LAYOUTS),
-                              ("layout_platform", LAYOUT_PLATFORMS), ("rollout_kernel", ROLLOUT_KERNELS)):
+                              ("layout_platform", LAYOUT_PLATFORMS), ("rollout_kernel", ROLLOUT_KERNELS),
+                              ("stop_remedy", STOP_REMEDIES)):
             v = getattr(self, name)
             if not isinstance(v, str) or v not in allowed:
                 raise ValueError(f"PlannerConfig.{name} must be one of {allowed}, got {v!r}")
@@ -364,5 +374,5 @@ else:
     sys.meta_path.insert(0, _AfterJaxImport())
 
 
-__all__ = ["PlannerConfig", "Params", "validate_params", "params_as_arrays", "ESTIMATORS", "DTYPES",
+__all__ = ["PlannerConfig", "Params", "validate_params", "params_as_arrays", "ESTIMATORS", "DTYPES", "STOP_REMEDIES",
            "MAX_HORIZON_STEPS"]

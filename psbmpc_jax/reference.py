@@ -27,7 +27,7 @@ from functools import lru_cache
 import numpy as np
 
 from .behaviours import validate_behaviours
-from .params import ESTIMATORS, Params, PlannerConfig, validate_params
+from .params import ESTIMATORS, STOP_REMEDIES, Params, PlannerConfig, validate_params
 from .reference_prediction import (
     as_behaviour,
     obstacle_covariances,
@@ -44,6 +44,7 @@ __all__ = [
     "collision_probability",
     "collision_cost",
     "colregs_violation",
+    "colregs_violation_heading",
     "polygon_distance",
     "polygon_distances",
     "grounding_cost",
@@ -312,13 +313,19 @@ def collision_cost(own_traj, obs_traj, S_seq, R, zeta, params: Params = Params()
     return best
 
 
-def colregs_violation(own_traj, obs_traj, params: Params = Params()) -> np.ndarray:
+def colregs_violation(own_traj, obs_traj, params: Params = Params(), stop_remedy: str = "none") -> np.ndarray:
     """Per-step COLREGS (rules 14/15) violation flags ``[N + 1]`` bool for one (l, i, s) (§8).
 
-    mu_s^{l,i} = ``colregs_violation(...).any()``.
+    mu_s^{l,i} = ``colregs_violation(...).any()``.  ``stop_remedy="colregs_heading"``: every step through
+    :func:`colregs_violation_heading` (the test on the own-ship's heading whatever its speed).
     """
     own_traj = np.asarray(own_traj, dtype=float)
     obs_traj = np.asarray(obs_traj, dtype=float)
+    if stop_remedy not in STOP_REMEDIES:
+        raise ValueError(f"stop_remedy must be one of {STOP_REMEDIES}, got {stop_remedy!r}")
+    if stop_remedy == "colregs_heading":
+        return np.array([colregs_violation_heading(o, b, float(params.d_close)) for o, b in zip(own_traj, obs_traj)],
+                        dtype=bool)
     v0 = _velocities(own_traj)
     vi = _velocities(obs_traj)
     dp = obs_traj[:, :2] - own_traj[:, :2]
@@ -336,6 +343,30 @@ def colregs_violation(own_traj, obs_traj, params: Params = Params()) -> np.ndarr
                & (v0[:, 0] * L[:, 0] + v0[:, 1] * L[:, 1] > COS_67_5 * n0))
     crossed = (n0 > 0.05) & (dot < COS_67_5 * n0 * ni)   # [choice] moving own-ship, as HEAD-ON
     return close & starboard & (head_on | (crossed & ~overtaken))
+
+
+def colregs_violation_heading(own, obs, d_close: float) -> bool:
+    """The stop remedy's COLREGS test of one time step, in angles (own-ship and obstacle states (x, y, χ, U)):
+    with the own-ship's heading χ₀ standing for its direction whatever its speed U₀, the bearing β of the
+    obstacle and Δχ = χ_i − χ₀:  CLOSE d < d_close; STARBOARD sin(β − χ₀) > 0; AHEAD d > 0 ∧ cos(β − χ₀) >
+    cos 67.5°; HEAD-ON U_i > 0 ∧ cos Δχ < −cos 22.5° ∧ AHEAD; CROSSED U_i > 0 ∧ cos Δχ < cos 67.5°; OVERTAKEN
+    U_i > 0 ∧ cos Δχ > cos 67.5° ∧ U_i > U₀.  Violation: CLOSE ∧ STARBOARD ∧ (HEAD-ON ∨ (CROSSED ∧ ¬OVERTAKEN)).
+    (Negative speeds do not occur in the trajectories.)"""
+    x0, y0, chi0, u0 = (float(v) for v in own[:4])
+    xi, yi, chii, ui = (float(v) for v in obs[:4])
+    dx, dy = xi - x0, yi - y0
+    d = math.hypot(dx, dy)
+    if not d < d_close or d == 0.0:
+        return False
+    beta = math.atan2(dy, dx)
+    if not math.sin(beta - chi0) > 0.0:
+        return False
+    c = math.cos(chii - chi0)
+    ahead = math.cos(beta - chi0) > COS_67_5
+    head_on = ui > 0.0 and c < -COS_22_5 and ahead
+    crossed = ui > 0.0 and c < COS_67_5
+    overtaken = ui > 0.0 and c > COS_67_5 and ui > u0
+    return bool(head_on or (crossed and not overtaken))
 
 
 def polygon_distances(points, ring) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -530,6 +561,7 @@ def evaluate_reference(situation: Situation, behaviours, params: Params = Params
     C = [np.zeros((n_b, ob.n_ps)) for ob in obstacles]
     mu = [np.zeros((n_b, ob.n_ps)) for ob in obstacles]
     kappa = float(params.kappa)
+    remedy = getattr(config, "stop_remedy", "none")
 
     for l in range(n_b):
         traj = ownship_trajectory(own, beh[l], params, config)
@@ -545,7 +577,7 @@ def evaluate_reference(situation: Situation, behaviours, params: Params = Params
             sum_mu = 0.0
             for s in range(ob.n_ps):
                 c_s = collision_cost(traj, obs_traj[i][s], S_pos[i], radii[i], ob.zeta, params, config, Z)
-                mu_s = 1.0 if bool(np.any(colregs_violation(traj, obs_traj[i][s], params))) else 0.0
+                mu_s = 1.0 if bool(np.any(colregs_violation(traj, obs_traj[i][s], params, remedy))) else 0.0
                 C[i][l, s] = c_s
                 mu[i][l, s] = mu_s
                 sum_c += float(ob.probs[s]) * c_s

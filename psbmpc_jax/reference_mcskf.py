@@ -17,6 +17,7 @@ import math
 
 import numpy as np
 
+from .reference import colregs_violation_heading
 from .reference_smooth import colregs_boolean
 
 CHOL_TOL = 64.0          # the pivot threshold of cholesky4, times eps and the largest diagonal entry
@@ -171,9 +172,10 @@ def exact_probability(dp, dv, Sigma, d_safe: float = 40.0, eps_v: float = 0.25) 
 # ------------------------------------------------------------------------------------------ eq. (20)
 def pair_series(own_traj, tgt_traj, t, Sigma, Z, *, d_safe: float = 40.0, eps_v: float = 0.25,
                 q_P: float = 5e-5, r_P: float = 1e-3, V0: float = 0.3, P0: float = 0.0, T_c: float = 6.0,
-                K_coll: float = 1.0, d_cl: float = 200.0, event: str = "mean_cpa") -> dict:
+                K_coll: float = 1.0, d_cl: float = 200.0, event: str = "mean_cpa", stop_remedy: str = "none") -> dict:
     """Per step k = 0…N of one (own-ship trajectory, target trajectory) pair: ``y``, ``P`` (filtered),
-    ``t_cpa``, ``coll`` (C ℙ̂ e^{−(t_k + t_cpa − t₀)/T_c}) and ``mu`` (Johansen's Boolean indicator)."""
+    ``t_cpa``, ``coll`` (C ℙ̂ e^{−(t_k + t_cpa − t₀)/T_c}) and ``mu`` (Johansen's Boolean indicator; with
+    ``stop_remedy="colregs_heading"`` the test on the heading, :func:`psbmpc_jax.reference.colregs_violation_heading`)."""
     own_traj, tgt_traj = np.asarray(own_traj, float), np.asarray(tgt_traj, float)
     L = cholesky4(Sigma)
     n = len(own_traj)
@@ -185,7 +187,10 @@ def pair_series(own_traj, tgt_traj, t, Sigma, Z, *, d_safe: float = 40.0, eps_v:
         dv = (vi[0] - vo[0], vi[1] - vo[1])
         y[k], tcs[k] = mcs_estimate(dp, dv, L, Z[k], d_safe, eps_v, event)
         C[k] = K_coll * (dv[0] ** 2 + dv[1] ** 2)
-        mu[k] = colregs_boolean(own, tgt, d_cl)
+        if stop_remedy == "colregs_heading":
+            mu[k] = 1.0 if colregs_violation_heading(own, tgt, d_cl) else 0.0
+        else:
+            mu[k] = colregs_boolean(own, tgt, d_cl)
     P = kf_filter(y, q_P, r_P, V0, P0)
     coll = np.array([C[k] * P[k] * math.exp(-(t[k] + tcs[k] - t[0]) / T_c) for k in range(n)])
     return {"y": y, "P": P, "t_cpa": tcs, "coll": coll, "mu": mu}

@@ -30,6 +30,7 @@ import jax.numpy as jnp
 
 from .base import Context, TermValue, cost_term
 from .colregs_fuzzy import check_choice, check_param
+from .colregs import stop_remedy
 from .sbmpc import colregs_boolean_xy
 
 #: Readings of the collision event 𝒮 (SPEC §4.4): ``"mean_cpa"`` [CHOICE] and ``"sample_cpa"`` [alternative].
@@ -235,7 +236,10 @@ class Psbmpc2020Term:
       straight CV line) this is scenario 0 exactly.  A context without ``scen_weight`` (None) weighs the valid
       scenarios uniformly;
     * d_safe is the term's own radius (Table 1: 40 m), not ``ctx.radius`` (no ship lengths added);
-    * the maximum over obstacles of an empty mask (or O = 0) is 0.
+    * the maximum over obstacles of an empty mask (or O = 0) is 0;
+    * ``config.stop_remedy`` (:class:`~psbmpc_jax.params.PlannerConfig`; ``"none"`` when ``config`` is None):
+      ``"colregs_heading"`` evaluates μ on the own-ship's heading whatever its speed, so a stopped own-ship is
+      no longer exempt (docs/methods/psbmpc.md "The stop loophole").
 
     Not smooth: y is a sample count (piecewise constant in the trajectories) and μ is Boolean; the other
     factors (C, the discount) are smooth, so gradients exist almost everywhere but ignore the jumps.
@@ -286,10 +290,11 @@ class Psbmpc2020Term:
         """This term's standard-normal table Z [n_t, N_MC, 4] (from ``jax.random.key(seed)``)."""
         return normal_table(jax.random.key(self.seed), n_t, self.n_mc, dtype)
 
-    def series(self, ctx: Context, z=None) -> dict:
+    def series(self, ctx: Context, z=None, heading: bool = False) -> dict:
         """Per (step, obstacle·scenario, behaviour) arrays ``[T, O·S, B]``: ``y`` (MC measurement), ``P``
         (filtered ℙ̂), ``t_cpa``, ``coll`` (C·ℙ̂·discount), ``mu`` (0/1), and ``step [T]`` (1 where the step
-        enters the sums).  ``z``: an explicit table [T, N_MC, 4] (default: :meth:`table`)."""
+        enters the sums).  ``z``: an explicit table [T, N_MC, 4] (default: :meth:`table`).  ``heading``: μ on
+        the own-ship's heading whatever its speed (the stop remedy ``"colregs_heading"``)."""
         own, obs = ctx.own, ctx.obstacles
         n_t = own.x.shape[0]
         n_o, n_s = obs.x.shape[1], obs.x.shape[2]
@@ -314,7 +319,7 @@ class Psbmpc2020Term:
         t = jnp.asarray(ctx.t, dtype)
         disc = jnp.exp(-((t - t[0])[:, None, None] + tc) / self.T_c)
         C = self.K_coll * (dvx * dvx + dvy * dvy)
-        mu = colregs_boolean_xy(ox, oy, ochi, oU, tx, ty, tchi, tU, self.d_cl)
+        mu = colregs_boolean_xy(ox, oy, ochi, oU, tx, ty, tchi, tU, self.d_cl, heading=heading)
         step = (jnp.arange(n_t) >= (0 if self.include_t0 else 1)).astype(dtype)
         return {"y": y, "P": P, "t_cpa": tc, "coll": C * P * disc, "mu": mu, "step": step}
 
@@ -336,7 +341,7 @@ class Psbmpc2020Term:
             return TermValue(jnp.zeros((n_b,), dtype), {"psbmpc2020_i": z, "psbmpc2020_coll_i": z,
                                                         "psbmpc2020_colregs_i": z, "psbmpc2020_pmax": z,
                                                         "psbmpc2020_h": jnp.zeros((n_b, n_o), dtype)})
-        sr = self.series(ctx)
+        sr = self.series(ctx, heading=stop_remedy(config) == "colregs_heading")
         step = sr["step"][:, None, None]
         valid = jnp.asarray(ctx.scen_valid, bool).reshape(-1)[:, None]           # [O·S, 1]
         coll = jnp.where(valid, jnp.sum(step * sr["coll"], axis=0), 0.0)         # [O·S, B]
@@ -366,7 +371,7 @@ class Psbmpc2020Term:
         Z = np.asarray(self.table(n_t, jnp.dtype(config.dtype)), dtype=float)
         t = [k * float(config.dt) for k in range(n_t)]
         return rm.psbmpc2020_cost(own_traj, rm.situation_obstacles(situation, params, config), t, Z,
-                                  **self._kw())["value"]
+                                  stop_remedy=stop_remedy(config), **self._kw())["value"]
 
 
 __all__ = [

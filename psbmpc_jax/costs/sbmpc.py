@@ -25,7 +25,6 @@ drops τ₀ *before* evaluating R (slicing afterwards would still poison reverse
 from __future__ import annotations
 
 
-import jax
 import jax.numpy as jnp
 
 from ..numerics import safe_sqrt
@@ -101,17 +100,21 @@ def collision_hazard(d, t, vo_x, vo_y, vi_x, vi_y, *, d_safe=DEFAULT_D_SAFE, K_c
     return sigma_coll(d, d_safe, w_coll) * c * adhoc_risk(d, t, d_safe, p, q)
 
 
-def colregs_boolean_xy(own_x, own_y, own_chi, own_U, tgt_x, tgt_y, tgt_chi, tgt_U, d_cl=DEFAULT_D_CL):
+def colregs_boolean_xy(own_x, own_y, own_chi, own_U, tgt_x, tgt_y, tgt_chi, tgt_U, d_cl=DEFAULT_D_CL, *,
+                       heading: bool = False):
     """The original COLREGS indicator μ ∈ {0, 1} (eqs. 5-10), as the arrays' float dtype:
     μ = CLOSE ∧ STARBOARD ∧ (HEAD-ON ∨ (CROSSED ∧ ¬OVERTAKEN)) with CLOSE: d < d_cl; STARBOARD: RB ∈ (0, π);
     HEAD-ON: ‖v_o‖ > 0.05 m/s ∧ v_o·v_i < −cos 22.5° ‖v_o‖‖v_i‖ ∧ v_o·L > cos 67.5° ‖v_o‖; CROSSED:
     ‖v_o‖ > 0.05 m/s ∧ v_o·v_i < cos 67.5° ‖v_o‖‖v_i‖; OVERTAKEN: v_o·v_i > cos 67.5° ‖v_o‖‖v_i‖ ∧
-    ‖v_i‖ > ‖v_o‖ (the library's :func:`psbmpc_jax.costs.colregs.violation`).  Piecewise constant."""
+    ‖v_i‖ > ‖v_o‖ (the library's :func:`psbmpc_jax.costs.colregs.violation`).  Piecewise constant.
+    ``heading=True`` (static): the stop remedy ``"colregs_heading"``, the tests on the own-ship's heading χ
+    whatever its speed (no speed guard)."""
     check_param("d_cl", d_cl, lo=0.0, lo_open=True)
     c, s = jnp.cos(own_chi), jnp.sin(own_chi)
     ci, si = jnp.cos(tgt_chi), jnp.sin(tgt_chi)
     dtype = jnp.result_type(own_x, tgt_x, float)
-    out = violation(tgt_x - own_x, tgt_y - own_y, own_U * c, own_U * s, tgt_U * ci, tgt_U * si, c, s, d_cl)
+    out = violation(tgt_x - own_x, tgt_y - own_y, own_U * c, own_U * s, tgt_U * ci, tgt_U * si, c, s, d_cl,
+                    heading=heading)
     return out.astype(dtype)
 
 
