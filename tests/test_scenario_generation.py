@@ -309,6 +309,23 @@ def test_the_script_writes_checks_and_refuses(tmp_path, capsys):
     assert tool.main(["overtaking", "--seed", "0", "--out", str(tmp_path / "h"), "--chart-clip-m", "100"]) == 2
 
 
+def test_the_cli_subcommand_is_the_script(tmp_path, capsys):
+    """``psbmpc-jax generate`` takes the script's options and writes the same files (same seed, same bytes)."""
+    from psbmpc_jax.apps.cli import main
+
+    a, b = tmp_path / "cli", tmp_path / "tool"
+    args = ["head_on", "overtaken", "--count", "2", "--seed", "7"]
+    assert main(["generate", *args, "--out", str(a), "--check"]) == 0
+    assert "0 files differ" in capsys.readouterr().out
+    assert _tool().main([*args, "--out", str(b)]) == 0
+    names = sorted(p.name for p in a.glob("*.yaml"))
+    assert names == sorted(p.name for p in b.glob("*.yaml")) and len(names) == 2
+    assert all((a / n).read_bytes() == (b / n).read_bytes() for n in names)
+    assert main(["generate", "head_on", "--seed", "7", "--out", str(a)]) == 2
+    err = capsys.readouterr().err
+    assert "psbmpc-jax generate: error:" in err and "already exist" in err
+
+
 def test_evaluation_on_straight_tracks_is_the_full_pipeline():
     """straight_line_tracks gives the evaluation tool constant course and speed; its encounter starts where the
     generator says (the first 1 s sample inside the stage-2 range)."""

@@ -35,6 +35,7 @@ PSB-MPC ship collision avoidance in JAX.
   psbmpc-jax run      closed-loop Monte Carlo simulation of scenario files, metrics (with COLREGS
                       scores) and figures
   psbmpc-jax evaluate COLREGS safety/compliance scores of saved or user trajectories
+  psbmpc-jax generate COLREGS-typed encounters (head-on, crossing, overtaking) as scenario files
   psbmpc-jax bench    runtime benchmark sweeps (JSON Lines records)
   psbmpc-jax report   Markdown report with figures from benchmark records
 
@@ -138,6 +139,15 @@ def build_parser() -> argparse.ArgumentParser:
                                     "course_deg, speed_mps]). Exit status 2 for a file that cannot be read.")
     add_evaluate_arguments(ev)
     parser._evaluate_parser = ev
+    from .generate import add_generate_arguments
+
+    gen = sub.add_parser("generate", help="COLREGS-typed encounters (head-on, crossing, overtaking) as scenario files",
+                         description="Draw encounters of the requested types from documented ranges of bearing, "
+                                     "course, speed, CPA and time to CPA (docs/encounter_generation.md), in open "
+                                     "water or on a chart, and write them as scenario files. Exit status 2 for bad "
+                                     "input, 1 if --check finds a file not classified as requested.")
+    add_generate_arguments(gen)
+    parser._generate_parser = gen
     return parser
 
 
@@ -464,6 +474,14 @@ def _main(argv) -> int:
         from ..evaltool.cli import run_evaluate
 
         return run_evaluate(args, parser._evaluate_parser)
+    if args.command == "generate":
+        from .generate import USER_ERRORS, run
+
+        try:
+            return run(args)
+        except USER_ERRORS as exc:
+            print(f"psbmpc-jax generate: error: {exc}", file=sys.stderr)
+            return 2
     if args.command == "report":
         from .report import run_report
 
