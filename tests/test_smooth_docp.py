@@ -316,8 +316,8 @@ def test_step_from_a_previous_plan_keeps_the_safeguard_and_resolving_from_its_ow
 @pytest.mark.parametrize("kw, match", [
     (dict(previous=np.zeros((8, 2)) + [0.5, 0.0], n_starts=1), "n_starts >= 2"),
     (dict(previous=np.zeros((7, 2)) + [0.5, 0.0], n_starts=2), r"previous must be \[8, 2\]"),
-    (dict(previous=np.zeros((8, 2)) + [0.5, 2.0], n_starts=2), "previous must lie in the DOCP's box"),
-    (dict(previous=np.zeros((8, 2)) + [0.05, 0.0], n_starts=2), "previous must lie in the DOCP's box"),
+    (dict(previous=np.zeros((8, 2)) + [0.5, 3.5], n_starts=2), "previous must lie in the route frame's box"),
+    (dict(previous=np.zeros((8, 2)) + [0.05, 0.0], n_starts=2), "previous must lie in the route frame's box"),
     (dict(previous=np.full((8, 2), np.nan), n_starts=2), "previous must be finite"),
     (dict(previous=np.full((8, 2), "a"), n_starts=2), "previous must be numeric"),
 ])
