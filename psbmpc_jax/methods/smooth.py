@@ -72,7 +72,7 @@ class SmoothController:
         self.step = float(scenario.mpc.smooth.dt)
         args = smooth_arguments(scenario)
         self.previous_start = bool(args.get("previous_start", False))
-        self.true_targets = scenario.mpc.smooth.targets == "true"
+        self.true_targets = scenario.mpc.smooth.targets == "true_states"
         self.planner = cls(scenario.polygons, batch="map", **args)
         self.init_only = bool(args["init_only"])
         self.terminal_los = args["settings"].chi_d_mode == "terminal_los"

@@ -36,7 +36,7 @@ class SmoothSpec:
         corridor_check: ``"continuous"`` (the corridor plus a proven clearance bound of every plan segment;
             default) or ``"samples"`` (the corridor at the 1-s samples only).
         targets: what the planner sees of the targets: ``"tracks"`` (the own-ship's Kalman-filter tracks;
-            default) or ``"true"`` (their true states, as the paper's simulations).
+            default) or ``"true_states"`` (their true states, as the paper's simulations).
     """
 
     T_init: float = 60.0
@@ -105,7 +105,7 @@ _CHI_D_MODES = ("terminal_los", "route_los")
 _CORRIDOR_CHECKS = ("continuous", "samples")
 
 
-_TARGET_SOURCES = ("tracks", "true")
+_TARGET_SOURCES = ("tracks", "true_states")
 
 
 _FIS_KEYS = ("d_cl_m", "e_cl_m", "eps", "n_y", "completion")
