@@ -1,4 +1,4 @@
-"""Land clearance of the DOCP's plan between its samples (a proven sample bound; docs/corridor.md).
+"""Land clearance of the DOCP's plan between its samples (a proven sample bound; docs/smooth_sbmpc.md).
 
 The corridor of Algorithm 3 constrains the plan's cross-track error at Ψ's samples only; a plan that keeps
 every sample inside its cross-section can still cut a corner of land between two samples (or beside a sample,
