@@ -261,6 +261,65 @@ def land_distance(points, polygons) -> np.ndarray:
     return d
 
 
+def signed_land_distance(points, polygons) -> np.ndarray:
+    """Signed distance of each point ``[K, 2]`` to the land ``polygons`` (rings ``[n, 2]``; negative inside a
+    polygon, even–odd rule per polygon), from shapely in float64."""
+    from shapely.geometry import Point, Polygon
+
+    polys = [Polygon(np.asarray(r, dtype=float)) for r in polygons]
+    out = []
+    for p in np.asarray(points, dtype=float).reshape(-1, 2):
+        pt = Point(p)
+        d = min(poly.exterior.distance(pt) for poly in polys)
+        out.append(-d if any(poly.contains(pt) for poly in polys) else d)
+    return np.asarray(out)
+
+
+# ------------------------------------------------------------------------------------------ DOCP guidance
+def route_los_courses(positions, waypoints, segment: int, lookahead: float, R_a: float) -> np.ndarray:
+    """LOS courses [rad] of the route ``waypoints [W, 2]`` at ``positions [K, 2]`` visited in order, starting on
+    ``segment``: at each position the waypoint switch (within ``R_a`` of the next waypoint, or past the
+    segment's end), then α_z + atan(−e/Δ) (α of the last segment past the last waypoint).  Plain loops."""
+    w = np.asarray(waypoints, dtype=float)
+    n = len(w)
+    alpha = [math.atan2(w[z + 1, 1] - w[z, 1], w[z + 1, 0] - w[z, 0]) for z in range(n - 1)]
+    seg_len = [math.hypot(w[z + 1, 0] - w[z, 0], w[z + 1, 1] - w[z, 1]) for z in range(n - 1)]
+    z = int(segment)
+    out = []
+    for x, y in np.asarray(positions, dtype=float).reshape(-1, 2):
+        if z <= n - 2:
+            along = (x - w[z, 0]) * math.cos(alpha[z]) + (y - w[z, 1]) * math.sin(alpha[z])
+            if math.hypot(x - w[z + 1, 0], y - w[z + 1, 1]) <= R_a or along >= seg_len[z]:
+                z += 1
+        if z <= n - 2:
+            e = -(x - w[z, 0]) * math.sin(alpha[z]) + (y - w[z, 1]) * math.cos(alpha[z])
+            out.append(alpha[z] + math.atan(-e / lookahead))
+        else:
+            out.append(alpha[n - 2])
+    return np.asarray(out)
+
+
+def line_los_courses(positions, p0, p_end, heading: float, lookahead: float) -> np.ndarray:
+    """LOS courses [rad] on the line from ``p0`` through ``p_end`` (``heading`` when they coincide) at
+    ``positions [K, 2]``: α + atan(−e/Δ), e the cross-track error (starboard positive), no switching."""
+    d = np.asarray(p_end, dtype=float) - np.asarray(p0, dtype=float)
+    alpha = math.atan2(d[1], d[0]) if math.hypot(*d) > 1e-6 else math.atan2(math.sin(heading), math.cos(heading))
+    out = []
+    for x, y in np.asarray(positions, dtype=float).reshape(-1, 2):
+        e = -(x - p0[0]) * math.sin(alpha) + (y - p0[1]) * math.cos(alpha)
+        out.append(alpha + math.atan(-e / lookahead))
+    return np.asarray(out)
+
+
+def terminal_los_offsets(psi, offsets, waypoints, segment: int, n: int, lookahead: float, R_a: float) -> np.ndarray:
+    """The first ``n`` route-frame course offsets of Ψ (``offsets [>= n]``, applied at Ψ's states ``psi [>= n + 1,
+    4]``) re-expressed against LOS on the line from Ψ_0 through Ψ_n: χ_m + wrap(χ_route − χ_line)."""
+    psi = np.asarray(psi, dtype=float)
+    chi_r = route_los_courses(psi[:n, :2], waypoints, segment, lookahead, R_a)
+    chi_l = line_los_courses(psi[:n, :2], psi[0, :2], psi[n, :2], float(psi[0, 2]), lookahead)
+    return np.asarray(offsets, dtype=float)[:n] + np.array([wrap_pm_pi(a) for a in chi_r - chi_l])
+
+
 # ------------------------------------------------------------------------------------------ manoeuvring
 def side_weight(z: float, upper_port: float, upper_stbd: float, s_chi: float) -> float:
     return upper_port * sigmoid(z, 0.0, -s_chi) + upper_stbd * sigmoid(z, 0.0, s_chi)
@@ -338,6 +397,7 @@ __all__ = [
     "sigmoid", "smax", "smin", "clip", "wrap_pm_pi", "encounter_inputs", "fis_memberships", "fis_mu", "fis_mu_states",
     "sigma_coll", "adhoc_risk", "collision_weight", "collision_hazard", "colregs_boolean", "sbmpc_cost",
     "side_weight", "gamma_smooth", "gamma_johansen", "gamma_sequence", "per_step_controls", "manoeuvring_cost",
+    "signed_land_distance", "route_los_courses", "line_los_courses", "terminal_los_offsets",
 ]
 
 

@@ -29,13 +29,16 @@ from psbmpc_jax.smooth.docp import (DOCP_SOLVER, DocpArgs, bounds, docp_cost, pr
 from psbmpc_jax.smooth.init_stage import (COURSE_OFFSETS_DEG, SPEED_FACTORS, ShipModel, SmoothSettings,
                                           SmoothWeights, behaviour_table)
 
-SETTINGS = SmoothSettings(T_init=16.0, T_mpc=8.0, dt=1.0, n_y=51)
+# the DOCP's mechanics in the route frame, the corridor at the samples (the DocpArgs built here hold the route and
+# the route-frame offsets); the terminal-LOS frame and the clearance between samples: test_smooth_guidance.py,
+# test_smooth_clearance.py
+SETTINGS = SmoothSettings(T_init=16.0, T_mpc=8.0, dt=1.0, n_y=51, chi_d_mode="route_los", corridor_check="samples")
 BANKS = [np.array([[-50.0, 14.0], [150.0, 14.0], [150.0, 30.0], [-50.0, 30.0]]),
          np.array([[-50.0, -14.0], [150.0, -14.0], [150.0, -30.0], [-50.0, -30.0]])]
 ROUTE = np.array([[0.0, 0.0], [140.0, 0.0]])
 LAST = np.array([1.0, 0.0])
 LAND = pack_world(BANKS, PlannerConfig(dtype="float64")).polygons
-BUF = buffered_chart(BANKS, SETTINGS.r_dom)
+BUF = buffered_chart(BANKS, SETTINGS.corridor_land_buffer)
 
 
 def random_situation(rng):
@@ -216,7 +219,7 @@ def test_optimum_on_the_corridor_bound():
     psi = rollout_controls(state0, route_path(route), warm, ShipModel(), SETTINGS.dt)
     out = {}
     for half_width in (20.0, 0.02):
-        corridor = cross_track_corridor(psi[:, :2], buffered_chart([], SETTINGS.r_dom), half_width)
+        corridor = cross_track_corridor(psi[:, :2], buffered_chart([], SETTINGS.corridor_land_buffer), half_width)
         args = DocpArgs(state0, route, jnp.zeros((0, 4)), jnp.asarray([1.0, 0.0]), psi[n], corridor,
                         SmoothWeights(), ShipModel())
         res = solve_docp(f, warm, lower=lower, upper=upper, eq=eq, ineq=ineq, settings=DOCP_SOLVER, args=args)
@@ -316,8 +319,8 @@ def test_step_from_a_previous_plan_keeps_the_safeguard_and_resolving_from_its_ow
 @pytest.mark.parametrize("kw, match", [
     (dict(previous=np.zeros((8, 2)) + [0.5, 0.0], n_starts=1), "n_starts >= 2"),
     (dict(previous=np.zeros((7, 2)) + [0.5, 0.0], n_starts=2), r"previous must be \[8, 2\]"),
-    (dict(previous=np.zeros((8, 2)) + [0.5, 2.0], n_starts=2), "previous must lie in the DOCP's box"),
-    (dict(previous=np.zeros((8, 2)) + [0.05, 0.0], n_starts=2), "previous must lie in the DOCP's box"),
+    (dict(previous=np.zeros((8, 2)) + [0.5, 3.5], n_starts=2), "previous must lie in the route frame's box"),
+    (dict(previous=np.zeros((8, 2)) + [0.05, 0.0], n_starts=2), "previous must lie in the route frame's box"),
     (dict(previous=np.full((8, 2), np.nan), n_starts=2), "previous must be finite"),
     (dict(previous=np.full((8, 2), "a"), n_starts=2), "previous must be numeric"),
 ])

@@ -177,7 +177,7 @@ def test_previous_plan_rows_equal_single_plans_and_a_nan_row_means_none():
     (dict(previous_start=True), lambda p: p.plan([0, 0, 0, 1], ROUTE, np.zeros((0, 4)), [1, 0], 1,
                                                  previous=np.ones((N + 1, 2))), "previous must be"),
     (dict(previous_start=True), lambda p: p.plan_batch(np.zeros((2, 4)) + [0, 0, 0, 1], ROUTE, np.zeros((2, 0, 4)),
-                                                       np.ones((2, 2)), [1, 1], previous=np.ones((2, N, 2)) * [1, 3]),
+                                                       np.ones((2, 2)), [1, 1], previous=np.ones((2, N, 2)) * [1, 3.5]),
      "box"),
     (dict(previous_start=True), lambda p: p.plan_batch(np.zeros((2, 4)) + [0, 0, 0, 1], ROUTE, np.zeros((2, 0, 4)),
                                                        np.ones((2, 2)), [1, 1],

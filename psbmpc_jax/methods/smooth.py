@@ -9,6 +9,7 @@ Smooth-SBMPC paper gives its planner the true target states).
 
 from __future__ import annotations
 
+import logging
 import time
 from typing import NamedTuple
 
@@ -17,6 +18,8 @@ import numpy as np
 
 from .base import COST_NAMES, INFO_NAMES, Decision, Observation, tracked_targets
 from .grid import consistent_sequences, plan_now
+
+log = logging.getLogger(__name__)
 
 
 def smooth_planner_class():
@@ -48,7 +51,8 @@ def smooth_arguments(scenario) -> dict:
                         T_chi=float(own.T_chi), T_U=float(own.T_U)),
         settings=SmoothSettings(T_init=sm.T_init, T_mpc=sm.T_mpc, dt=sm.dt, r_dom=sm.domain_radius,
                                 corridor_half_width=sm.corridor_half_width, terminal=sm.terminal,
-                                fis_completion=fis.completion, n_y=fis.n_y),
+                                fis_completion=fis.completion, n_y=fis.n_y, chi_d_mode=sm.chi_d_mode,
+                                corridor_land_buffer=sm.corridor_land_buffer, corridor_check=sm.corridor_check),
         solver=SolverSettings(**given) if given else None,
         n_starts=sm.n_starts, init_only=mpc.method == "sbmpc_init", dtype=mpc.config.dtype,
         **({"previous_start": True} if sm.previous_start and mpc.method != "sbmpc_init" else {}))
@@ -68,7 +72,10 @@ class SmoothController:
         self.step = float(scenario.mpc.smooth.dt)
         args = smooth_arguments(scenario)
         self.previous_start = bool(args.get("previous_start", False))
+        self.true_targets = scenario.mpc.smooth.targets == "true_states"
         self.planner = cls(scenario.polygons, batch="map", **args)
+        self.init_only = bool(args["init_only"])
+        self.terminal_los = args["settings"].chi_d_mode == "terminal_los"
         self._previous = None                                                  # (t [s], controls [R, N, 2])
 
     def _shifted_previous(self, t: float):
@@ -83,7 +90,10 @@ class SmoothController:
     def decide(self, obs: Observation) -> Decision:
         R = obs.n_runs
         states = obs.states[:, 0]                                               # [R, 4] true own-ship state
-        targets = tracked_targets(obs.tracks)                                   # [R, I, 4]
+        if self.true_targets:                                                   # the paper's: true states
+            targets = np.asarray(obs.states[:, 1:], float)                      # [R, I, 4]
+        else:
+            targets = tracked_targets(obs.tracks)                               # [R, I, 4]
         last = obs.offsets[:, 0]                                                # [R, 2] applied offsets
         route = obs.route(0)                                                    # the route, extended
         t = obs.t
@@ -96,6 +106,10 @@ class SmoothController:
         controls = np.asarray(plan.controls, float).reshape(R, -1, 2)
         if self.previous_start:
             self._previous = (t, controls)
+        frame = np.asarray(plan.route_frame, bool).reshape(R)
+        if not self.init_only and self.terminal_los and frame.any():
+            log.info("Smooth-SBMPC at t = %g s: %d of %d runs planned in the route frame (the initialisation "
+                     "stage's offsets leave the box in the terminal-LOS frame)", t, int(frame.sum()), R)
         info = {name: np.asarray(getattr(plan, name), float).reshape(R) for name in INFO_NAMES}
         return Decision(jobs=[(r, 0) for r in range(R)], first=first,
                         costs=np.full((R, len(COST_NAMES)), np.nan), walls=np.full(R, wall / R), device_calls=1,
@@ -114,6 +128,7 @@ class StepPlan(NamedTuple):
     used_warm: np.ndarray
     status: np.ndarray
     iterations: np.ndarray
+    route_frame: np.ndarray
 
 
 class SmoothStepPlanner:
@@ -138,7 +153,7 @@ class SmoothStepPlanner:
         self.solver = SolverSettings() if solver is None else solver
         self.init_only, self.dtype = bool(init_only), np.dtype(dtype)
         self.land = pack_world(tuple(polygons), PlannerConfig(dtype=str(self.dtype))).polygons
-        self.buffered = None if self.init_only else buffered_chart(tuple(polygons), self.settings.r_dom,
+        self.buffered = None if self.init_only else buffered_chart(tuple(polygons), self.settings.corridor_land_buffer,
                                                                     dtype=str(self.dtype))
 
     def plan(self, state0, route, targets, last, segment=0) -> StepPlan:
@@ -154,13 +169,14 @@ class SmoothStepPlanner:
                                              self.settings))
             cost = np.asarray(init.cost[0], self.dtype)
             return StepPlan(np.asarray(init.controls[0]), np.asarray(init.controls[:n]), np.asarray(init.psi), cost,
-                            cost, f(0.0), np.int32(1), np.int32(0), np.int32(0))
+                            cost, f(0.0), np.int32(1), np.int32(0), np.int32(0), np.bool_(True))
         st = jax.device_get(smooth_sbmpc_step(state0, route, targets, last, self.land, self.buffered,
                                               weights=self.weights, model=self.model, settings=self.settings,
                                               solver=self.solver))
         return StepPlan(np.asarray(st.apply), np.asarray(st.controls), np.asarray(st.init.psi), np.asarray(st.cost),
                         np.asarray(st.warm_cost), np.asarray(st.violation), np.asarray(st.used_warm, np.int32),
-                        np.asarray(st.solver.status), np.asarray(st.solver.inner_iterations))
+                        np.asarray(st.solver.status), np.asarray(st.solver.inner_iterations),
+                        np.asarray(st.route_frame))
 
     def plan_batch(self, states, route, targets, last, segments) -> StepPlan:
         rows = [self.plan(states[r], route, targets[r], last[r], int(segments[r])) for r in range(len(states))]

@@ -29,6 +29,14 @@ class SmoothSpec:
         n_starts: starts of the DOCP solve (multi-start).
         previous_start: start 1 of the DOCP is the previous update's kept sequence, shifted (needs
             n_starts >= 2; ignored by ``sbmpc_init``, which has no DOCP).
+        chi_d_mode: the DOCP's guidance: ``"terminal_los"`` (LOS on the line from the ship through the
+            initialisation stage's point at τ₀ + T_mpc, the paper's; default) or ``"route_los"`` (the route's LOS).
+        corridor_land_buffer: the corridor's land buffer [m] (its ray cast and the clearance between samples),
+            apart from domain_radius (N_TP).
+        corridor_check: ``"continuous"`` (the corridor plus a proven clearance bound of every plan segment;
+            default) or ``"samples"`` (the corridor at the 1-s samples only).
+        targets: what the planner sees of the targets: ``"tracks"`` (the own-ship's Kalman-filter tracks;
+            default) or ``"true_states"`` (their true states, as the paper's simulations).
     """
 
     T_init: float = 60.0
@@ -40,6 +48,10 @@ class SmoothSpec:
     terminal: str = "full"
     n_starts: int = 4
     previous_start: bool = False
+    chi_d_mode: str = "terminal_los"
+    corridor_land_buffer: float = 4.0
+    corridor_check: str = "continuous"
+    targets: str = "tracks"
 
 
 @dataclass(frozen=True)
@@ -84,7 +96,16 @@ MAX_FIS_NY = 100_001
 
 
 _SMOOTH_KEYS = ("T_init_s", "T_mpc_s", "dt_s", "corridor_half_width_m", "domain_radius_m", "k_ntp", "terminal",
-                "n_starts", "previous_start")
+                "n_starts", "previous_start", "chi_d_mode", "corridor_land_buffer_m", "corridor_check", "targets")
+
+
+_CHI_D_MODES = ("terminal_los", "route_los")
+
+
+_CORRIDOR_CHECKS = ("continuous", "samples")
+
+
+_TARGET_SOURCES = ("tracks", "true_states")
 
 
 _FIS_KEYS = ("d_cl_m", "e_cl_m", "eps", "n_y", "completion")
@@ -121,6 +142,14 @@ def parse_smooth(d) -> SmoothSpec:
         kw["n_starts"] = integer(d["n_starts"], f"{w}.n_starts", ge=1, le=MAX_STARTS)
     if "previous_start" in d:
         kw["previous_start"] = as_bool(d["previous_start"], f"{w}.previous_start")
+    if "chi_d_mode" in d:
+        kw["chi_d_mode"] = as_choice(d["chi_d_mode"], _CHI_D_MODES, f"{w}.chi_d_mode")
+    if "corridor_land_buffer_m" in d:
+        kw["corridor_land_buffer"] = as_number(d["corridor_land_buffer_m"], f"{w}.corridor_land_buffer_m", ge=0)
+    if "corridor_check" in d:
+        kw["corridor_check"] = as_choice(d["corridor_check"], _CORRIDOR_CHECKS, f"{w}.corridor_check")
+    if "targets" in d:
+        kw["targets"] = as_choice(d["targets"], _TARGET_SOURCES, f"{w}.targets")
     spec = SmoothSpec(**kw)
     if spec.previous_start and spec.n_starts < 2:
         raise ValueError(f"{w}.previous_start needs {w}.n_starts >= 2 (start 0 is always the trajectory Ψ), "

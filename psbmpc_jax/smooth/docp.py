@@ -16,10 +16,17 @@ map, settings :data:`DOCP_SOLVER` unless given) from the warm start Ψ (the init
 (:func:`psbmpc_jax.nlp.best_index`) then passes the safeguard: a result worse or less feasible than the best
 of the starts themselves (Ψ, or the previous plan when that is feasible and cheaper) is replaced by that start.
 
-**χ_d inside the DOCP (our reading, see docs/smooth_sbmpc.md):** route LOS, the same guidance as the init
-stage, rather than LOS on the segment p(τ₀) → p_T (SPEC choice C-000-7).  With the same guidance the warm
-start reproduces Ψ exactly, so it satisfies the full terminal equality and the corridor — the safeguard always
-has a feasible fallback.  With C-000-7's segment LOS the warm start would not be feasible.
+**χ_d inside the DOCP** (``settings.chi_d_mode``, :mod:`psbmpc_jax.smooth.guidance`): ``"terminal_los"`` (the
+paper's, the default) takes LOS on the line from the ship through Ψ_N; Ψ's offsets are re-expressed against
+it along Ψ, so the warm start still reproduces Ψ (to rounding) and satisfies the terminal equality and the
+corridor; the applied offset ``last`` is carried into that frame at τ₀, and the kept sequence is converted back
+to the route frame (the frame the simulator and the init stage apply offsets in) along the plan's own
+trajectory.  Where a re-expressed offset of Ψ would leave the box (±90°), that update runs in the route frame
+(``SmoothStep.route_frame``).  ``"route_los"``: the route's LOS, as the init stage.
+
+**Land between samples** (``settings.corridor_check="continuous"``, the default): besides the corridor at the
+samples, every segment x_k → x_{k+1} of the plan keeps the corridor's land buffer b by a proven sample bound
+(:mod:`psbmpc_jax.smooth.clearance`).
 """
 
 from __future__ import annotations
@@ -36,8 +43,11 @@ from ..checks import control_plan
 from ..costs.manoeuvring import gamma_sequence
 from ..costs.sbmpc import sbmpc_costs
 from ..nlp import BATCH_MODES, SolverResult, SolverSettings, safeguard, solve_docp, solve_multistart
-from ..numerics import shift_controls, wrap_angle
+from ..numerics import shift_controls, wrap_angle  # noqa: F401  (shift_controls: re-exported, docs name docp.shift_controls)
+from ..ownship import Path
+from .clearance import Clearance, make_clearance, segment_residuals
 from .corridor import Corridor, corridor_kernel, cross_track_residuals
+from .guidance import line_path, reexpress, select_path
 from .init_stage import (InitResult, ShipModel, SmoothSettings, SmoothWeights, init_stage_traced, behaviour_table,
                          check_segment, gamma_weights, pair_kwargs, rollout_controls, route_path, target_predictions)
 from .land_hit import as_chart
@@ -58,11 +68,17 @@ DOCP_SOLVER = SolverSettings()
 #: The most starts of the multi-start: Ψ plus every one of the 39 behaviours.
 MAX_STARTS = 40
 
+#: Ψ's offsets re-expressed in the terminal-LOS frame may exceed the box by this much [rad] (rounding; they are
+#: then moved onto it); farther out, the update runs in the route frame.
+FRAME_TOL = 1e-6
+
 
 class DocpArgs(NamedTuple):
-    """Traced data of one DOCP: start state ``[4]``, route ``[W, 2]``, targets ``[I, 4]``, last offsets ``[2]``,
-    the terminal state Ψ_{N_mpc} ``[4]``, the corridor of Ψ at steps 0..N_mpc, weights, model and the active
-    route segment at τ₀ (int32 scalar)."""
+    """Traced data of one DOCP: start state ``[4]``, route ``[W, 2]``, targets ``[I, 4]``, last offsets ``[2]``
+    (in the DOCP's frame), the terminal state Ψ_{N_mpc} ``[4]``, the corridor of Ψ at steps 0..N_mpc, weights,
+    model and the active segment of the guidance path at τ₀ (int32 scalar).  ``path``: the guidance path
+    (:mod:`psbmpc_jax.smooth.guidance`; None: the route's); ``clearance``: the land clearance between samples
+    (:mod:`psbmpc_jax.smooth.clearance`; None: not checked)."""
 
     state0: jax.Array
     route: jax.Array
@@ -73,11 +89,16 @@ class DocpArgs(NamedTuple):
     weights: SmoothWeights
     model: ShipModel
     segment: jax.Array = 0
+    path: Path | None = None
+    clearance: Clearance | None = None
+
+
+def _path(a: DocpArgs) -> Path:
+    return route_path(a.route) if a.path is None else a.path
 
 
 def _states(u, a: DocpArgs, settings: SmoothSettings):
-    return rollout_controls(a.state0, route_path(a.route), _as_state_dtype(u, a), a.model, settings.dt,
-                            z0=a.segment)
+    return rollout_controls(a.state0, _path(a), _as_state_dtype(u, a), a.model, settings.dt, z0=a.segment)
 
 
 def _as_state_dtype(u, a: DocpArgs):
@@ -114,8 +135,12 @@ def docp_eq(u, a: DocpArgs, settings: SmoothSettings):
 
 
 def docp_ineq(u, a: DocpArgs, settings: SmoothSettings):
-    lo, hi = cross_track_residuals(_states(u, a, settings)[:, :2], a.corridor)
-    return jnp.concatenate([lo[1:], hi[1:]])
+    states = _states(u, a, settings)
+    lo, hi = cross_track_residuals(states[:, :2], a.corridor)
+    parts = [lo[1:], hi[1:]]
+    if a.clearance is not None:
+        parts.append(segment_residuals(states, a.clearance, settings.dt))
+    return jnp.concatenate(parts)
 
 
 @functools.lru_cache(maxsize=None)
@@ -151,6 +176,10 @@ class SmoothStep(NamedTuple):
             :func:`psbmpc_jax.nlp.best_index` (feasible first, then the lowest J_d, ties to the lower index), so 0
             (Ψ, feasible by construction) unless another start -- in practice the previous plan -- is feasible
             and cheaper.
+        docp_controls: the kept sequence ``[N_mpc, 2]`` in the DOCP's frame (``apply`` and ``controls`` are in the
+            route frame; equal with ``chi_d_mode="route_los"``).  ``starts`` are in the DOCP's frame too.
+        route_frame: bool, the DOCP ran in the route frame (``"route_los"``, or Ψ's offsets did not fit the box in
+            the terminal-LOS frame).
     """
 
     apply: jax.Array
@@ -168,6 +197,8 @@ class SmoothStep(NamedTuple):
     best: jax.Array
     iterations: jax.Array
     warm_index: jax.Array
+    docp_controls: jax.Array
+    route_frame: jax.Array
 
 
 class Previous(NamedTuple):
@@ -182,15 +213,16 @@ class Previous(NamedTuple):
     valid: jax.Array
 
 
-def warm_starts(init: InitResult, n_starts: int, n: int, previous: Previous | None = None):
+def warm_starts(init: InitResult, n_starts: int, n: int, previous: Previous | None = None, warm=None):
     """The starts ``[n_starts, n, 2]`` of the multi-start: Ψ's first ``n`` offsets, then the constant sequences
     of the ``n_starts − 1`` behaviours with the lowest total cost at τ₀ (``init.first_cost``; ties: enumeration
     order).  A behaviour whose constant sequence equals Ψ's (Ψ held it throughout) is ranked last, so it does
     not duplicate start 0.
 
     With ``previous`` (needs ``n_starts >= 2``): row 1 is the previous update's sequence when
-    ``previous.valid``, and the behaviours fill rows 2…; when not valid the rows are those without it."""
-    warm = init.controls[:n]
+    ``previous.valid``, and the behaviours fill rows 2…; when not valid the rows are those without it.
+    ``warm``: row 0 (Ψ's offsets in the DOCP's frame; default: ``init.controls[:n]``, the route frame)."""
+    warm = init.controls[:n] if warm is None else warm
     if n_starts == 1:
         if previous is not None:
             raise ValueError("a previous-plan start needs n_starts >= 2 (row 0 is always Ψ)")
@@ -215,29 +247,99 @@ def cast_tree(tree, dtype):
     return jax.tree.map(one, tree)
 
 
+class Frame(NamedTuple):
+    """The DOCP's guidance frame of one step (:func:`docp_frame`): its path and segment at τ₀, Ψ's first N_mpc
+    offsets and the applied offsets ``last`` in it, whether it is the route's (bool), and the route path and
+    segment (to convert back)."""
+
+    path: Path
+    segment: jax.Array
+    warm: jax.Array
+    last: jax.Array
+    route_frame: jax.Array
+    route: Path
+    route_segment: jax.Array
+
+
+def docp_frame(init: InitResult, state0, last, route, segment, model: ShipModel, settings: SmoothSettings) -> Frame:
+    """The DOCP's frame (``settings.chi_d_mode``): the route's, or the line from the ship through Ψ_N with Ψ's
+    offsets and ``last`` re-expressed against it (the route's when a re-expressed offset of Ψ leaves the box by
+    more than :data:`FRAME_TOL`)."""
+    n = settings.n_mpc
+    rpath = route_path(route)
+    z = jnp.asarray(segment, jnp.int32)
+    warm_r = init.controls[:n]
+    if settings.chi_d_mode == "route_los":
+        return Frame(rpath, z, warm_r, last, jnp.asarray(True), rpath, z)
+    lpath = line_path(state0[:2], init.psi[n, :2], state0[2], route.shape[0])
+    zero = jnp.asarray(0, jnp.int32)
+    chi = reexpress(warm_r[:, 1], init.psi[:n, :2], rpath, z, lpath, zero, model.lookahead, model.R_a)
+    use_route = ~jnp.all(jnp.abs(chi) <= UPPER[1] + FRAME_TOL)
+    chi = jnp.clip(chi, LOWER[1], UPPER[1])
+    last_l = reexpress(last[1:2], state0[None, :2], rpath, z, lpath, zero, model.lookahead, model.R_a)[0]
+    warm = jnp.where(use_route, warm_r, jnp.stack([warm_r[:, 0], chi], axis=-1))
+    last_f = jnp.where(use_route, last, jnp.stack([last[0], last_l]))
+    return Frame(select_path(use_route, rpath, lpath), jnp.where(use_route, z, zero), warm, last_f, use_route,
+                 rpath, z)
+
+
+def to_route_frame(u, state0, frame: Frame, model: ShipModel, settings: SmoothSettings):
+    """A sequence ``u [N, 2]`` in the DOCP's frame as route-frame offsets, along the trajectory it produces (the
+    same commands: rolled out on the route's LOS it gives the same states, to rounding)."""
+    states = rollout_controls(state0, frame.path, u, model, settings.dt, z0=frame.segment)
+    n = u.shape[0]
+    chi = reexpress(u[:, 1], states[:n, :2], frame.path, frame.segment, frame.route, frame.route_segment,
+                    model.lookahead, model.R_a)
+    return jnp.stack([u[:, 0], chi], axis=-1)
+
+
+def _previous_in_frame(previous: Previous | None, state0, frame: Frame, model: ShipModel,
+                       settings: SmoothSettings) -> Previous | None:
+    """The previous plan (route-frame offsets, as :class:`SmoothStep` returns them) in the DOCP's frame, along
+    the trajectory it produces from now, moved onto the box (a start only)."""
+    if previous is None:
+        return None
+    u = previous.controls.astype(state0.dtype)
+    states = rollout_controls(state0, frame.route, u, model, settings.dt, z0=frame.route_segment)
+    n = u.shape[0]
+    chi = reexpress(u[:, 1], states[:n, :2], frame.route, frame.route_segment, frame.path, frame.segment,
+                    model.lookahead, model.R_a)
+    lo, hi = (jnp.asarray(b, u.dtype) for b in (LOWER, UPPER))
+    return previous._replace(controls=jnp.clip(jnp.stack([u[:, 0], chi], axis=-1), lo, hi))
+
+
 class Prepared(NamedTuple):
     """The first part of a step (:func:`prepare_step`): the init stage's result, the corridor of Ψ, the DOCP's
-    data and its starts ``[S, N_mpc, 2]``."""
+    data, its starts ``[S, N_mpc, 2]`` (in the DOCP's frame) and the :class:`Frame`."""
 
     init: InitResult
     corridor: Corridor
     args: DocpArgs
     starts: jax.Array
+    frame: Frame
 
 
 def prepare_step(state0, route, targets, last, segment, land, buffered_land, weights, model, *,
                  settings: SmoothSettings, n_starts: int, previous: Previous | None = None) -> Prepared:
-    """Traceable first part of a step: Alg. 1 (init stage), Alg. 3 (corridor of Ψ), the DOCP's data and starts
-    (no validation; every array already of one float dtype; ``previous``: see :func:`warm_starts`)."""
+    """Traceable first part of a step: Alg. 1 (init stage), Alg. 3 (corridor of Ψ), the DOCP's frame, data and
+    starts (no validation; every array already of one float dtype; ``previous``: see :func:`warm_starts`, in
+    the route frame).  ``land``: the unbuffered chart (N_TP, and the clearance between samples);
+    ``buffered_land``: the chart buffered by ``settings.corridor_land_buffer`` (the corridor's ray cast)."""
     init = init_stage_traced(state0, route, targets, last, land, weights, model, settings, segment)
     n = settings.n_mpc
     dtype = init.psi.dtype
     corridor = corridor_kernel(init.psi[:n + 2, :2], buffered_land, jnp.asarray(settings.corridor_half_width, dtype),
                                heading=state0[2])
     corridor = jax.tree.map(lambda a: a[:n + 1], corridor)
-    args = DocpArgs(init.psi[0], route, targets, last, init.psi[n], corridor, weights, model,
-                    jnp.asarray(segment, jnp.int32))
-    return Prepared(init, corridor, args, warm_starts(init, n_starts, n, previous))
+    frame = docp_frame(init, state0, last, route, segment, model, settings)
+    clearance = None
+    if settings.corridor_check == "continuous":
+        clearance = make_clearance(land, init.psi[:n + 1], state0, model.U_d, settings.corridor_land_buffer,
+                                   settings.dt)
+    args = DocpArgs(init.psi[0], route, targets, frame.last, init.psi[n], corridor, weights, model, frame.segment,
+                    frame.path, clearance)
+    prev = _previous_in_frame(previous, state0, frame, model, settings)
+    return Prepared(init, corridor, args, warm_starts(init, n_starts, n, prev, warm=frame.warm), frame)
 
 
 def solve_step(prep: Prepared, solver: SolverSettings, *, settings: SmoothSettings, batch: str) -> SmoothStep:
@@ -263,8 +365,10 @@ def solve_step(prep: Prepared, solver: SolverSettings, *, settings: SmoothSettin
     # the reference of the safeguard: the best of the starts themselves (feasible first, then J_d; ties keep
     # Ψ), so the kept sequence is never worse than Ψ nor than any other start, the previous plan included
     kept = safeguard(result, starts, f, lower=lower, upper=upper, eq=eq, ineq=ineq, args=args, tol=solver.tol)
-    return SmoothStep(kept.u[0], kept.u, kept.f, kept.max_violation, kept.used_warm, result, prep.init,
-                      prep.corridor, kept.warm_f[0], starts, all_f, all_v, best, iters, kept.warm_index)
+    applied = to_route_frame(kept.u, args.state0, prep.frame, args.model, settings)
+    return SmoothStep(applied[0], applied, kept.f, kept.max_violation, kept.used_warm, result, prep.init,
+                      prep.corridor, kept.warm_f[0], starts, all_f, all_v, best, iters, kept.warm_index, kept.u,
+                      prep.frame.route_frame)
 
 
 def step_traced(state0, route, targets, last, segment, land, buffered_land, weights, model, solver, *,
@@ -292,13 +396,15 @@ def check_step_options(settings, solver, n_starts, batch):
 
 
 def check_previous(previous, n: int, name: str = "previous", lead: tuple = ()) -> np.ndarray:
-    """A previous-plan start ``lead + [n, 2]`` (U_m, χ_m) as float64 NumPy: finite, inside the DOCP's box
-    (:func:`psbmpc_jax.checks.control_plan`, ``ValueError`` naming ``name`` otherwise).  With ``lead`` (runs), a
-    row that is NaN throughout means "no previous plan for this run"; a partly NaN row is an error, and so is a
-    single plan that is NaN throughout (pass None instead)."""
-    a, _ = control_plan(previous, name, n=n, lower=LOWER, upper=UPPER, what="U_m, chi_m", lead=lead,
-                        missing_ok=False, box=f"the DOCP's box: U_m in [{LOWER[0]}, {UPPER[0]}], chi_m in "
-                                              f"[-pi/2, pi/2] rad")
+    """A previous-plan start ``lead + [n, 2]`` (U_m, χ_m; route-frame offsets, as :class:`SmoothStep` returns
+    them) as float64 NumPy: finite, U_m in the DOCP's box, χ_m in [−π, π] (a route-frame offset may exceed ±90°
+    where the DOCP's frame is the terminal-LOS line; :func:`psbmpc_jax.checks.control_plan`, ``ValueError``
+    naming ``name`` otherwise).  With ``lead`` (runs), a row that is NaN throughout means "no previous plan for
+    this run"; a partly NaN row is an error, and so is a single plan that is NaN throughout (pass None
+    instead)."""
+    a, _ = control_plan(previous, name, n=n, lower=(LOWER[0], -math.pi), upper=(UPPER[0], math.pi),
+                        what="U_m, chi_m", lead=lead, missing_ok=False,
+                        box=f"the route frame's box: U_m in [{LOWER[0]}, {UPPER[0]}], chi_m in [-pi, pi] rad")
     return a
 
 
@@ -331,9 +437,9 @@ def smooth_sbmpc_step(state0, route, targets, last, land, buffered_land, *, weig
     safeguard, as one jitted computation (values never recompile; ``settings``, ``n_starts``, ``batch``, the
     static fields of ``solver`` and the array shapes do).
 
-    ``land``: the unbuffered chart (``pack_world(...).polygons``) for N_TP; ``buffered_land``: the chart
-    buffered by ``settings.r_dom`` (:func:`psbmpc_jax.smooth.buffered_chart`, built once per chart) for the
-    corridor.  ``solver``: :data:`DOCP_SOLVER` when None.  ``n_starts``: 1 (Ψ only) … 40; ``batch``: how the
+    ``land``: the unbuffered chart (``pack_world(...).polygons``) for N_TP and the clearance between samples;
+    ``buffered_land``: the chart buffered by ``settings.corridor_land_buffer``
+    (:func:`psbmpc_jax.smooth.buffered_chart`, built once per chart) for the corridor.  ``solver``: :data:`DOCP_SOLVER` when None.  ``n_starts``: 1 (Ψ only) … 40; ``batch``: how the
     starts run, ``"map"`` (one after another, the faster on a CPU) or ``"vmap"``.  ``segment``: the active route
     segment at τ₀.  ``previous``: the previous update's kept sequence ``[N_mpc, 2]``, shifted to begin now
     (:func:`shift_controls`), as start 1 (needs ``n_starts >= 2``); None: not used.  Other arguments as

@@ -37,6 +37,10 @@ from .land_hit import first_land_hit, land_clearance
 COURSE_OFFSETS_DEG = tuple(float(c) for c in range(-90, 91, 15))
 SPEED_FACTORS = (0.1, 0.5, 1.0)
 
+#: The DOCP's guidance frames (:mod:`psbmpc_jax.smooth.guidance`) and the corridor checks.
+CHI_D_MODES = ("terminal_los", "route_los")
+CORRIDOR_CHECKS = ("continuous", "samples")
+
 
 def _positive(name, value):
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0:
@@ -52,6 +56,11 @@ class SmoothSettings:
     corridor_half_width: Δd.  terminal: ``"full"`` (x, y, χ, U), ``"position"`` or ``"soft"`` (a quadratic
     penalty ``terminal_weight`` instead of an equality).  fis_completion: ``"default_false"`` or ``"literal"``.
     n_y: output grid of the FIS defuzzification.
+    chi_d_mode: the DOCP's guidance, ``"terminal_los"`` (LOS on the line from the ship through Ψ_N, the paper's;
+    default) or ``"route_los"`` (the route's LOS, as the init stage).  corridor_land_buffer: b [m], the land
+    buffer of the corridor (its ray cast and the clearance between samples), apart from r_dom.  corridor_check:
+    ``"continuous"`` (the corridor plus the proven clearance bound of every plan segment,
+    :mod:`psbmpc_jax.smooth.clearance`; default) or ``"samples"`` (the corridor at the samples only).
 
     The defaults shared with scenario files are defined once, by the ``mpc.smooth`` and ``mpc.fis`` sections
     (:class:`~psbmpc_jax.methods.smooth_settings.SmoothSpec`, :class:`~psbmpc_jax.methods.smooth_settings.FisSpec`)."""
@@ -65,6 +74,9 @@ class SmoothSettings:
     terminal_weight: float = 10.0
     fis_completion: str = FisSpec.completion
     n_y: int = FisSpec.n_y
+    chi_d_mode: str = SmoothSpec.chi_d_mode
+    corridor_land_buffer: float = SmoothSpec.corridor_land_buffer
+    corridor_check: str = SmoothSpec.corridor_check
 
     def __post_init__(self):
         for name in ("T_init", "T_mpc", "dt", "corridor_half_width", "terminal_weight"):
@@ -82,6 +94,13 @@ class SmoothSettings:
             raise ValueError(f"terminal must be one of 'full', 'position', 'soft', got {self.terminal!r}")
         if self.fis_completion not in ("default_false", "literal"):
             raise ValueError(f"fis_completion must be 'default_false' or 'literal', got {self.fis_completion!r}")
+        if self.chi_d_mode not in CHI_D_MODES:
+            raise ValueError(f"chi_d_mode must be one of {CHI_D_MODES}, got {self.chi_d_mode!r}")
+        b = self.corridor_land_buffer
+        if isinstance(b, bool) or not isinstance(b, (int, float)) or not math.isfinite(b) or b < 0:
+            raise ValueError(f"corridor_land_buffer must be a finite number >= 0 [m], got {b!r}")
+        if self.corridor_check not in CORRIDOR_CHECKS:
+            raise ValueError(f"corridor_check must be one of {CORRIDOR_CHECKS}, got {self.corridor_check!r}")
         if isinstance(self.n_y, bool) or not isinstance(self.n_y, int) or self.n_y < 2:
             raise ValueError(f"n_y must be an integer >= 2, got {self.n_y!r}")
 

@@ -61,6 +61,8 @@ class SmoothPlan(NamedTuple):
         status: solver status of the best start (0 converged, 1 max-iter, 2 infeasible, 3 non-finite;
             ``init_only``: 0).
         iterations: inner solver iterations summed over the starts (``init_only``: 0).
+        route_frame: the DOCP ran in the route frame (``chi_d_mode="route_los"``, or Ψ did not fit the box in the
+            terminal-LOS frame; ``init_only``: True).  ``apply`` and ``controls`` are route-frame offsets always.
     """
 
     apply: np.ndarray
@@ -72,6 +74,7 @@ class SmoothPlan(NamedTuple):
     used_warm: np.ndarray
     status: np.ndarray
     iterations: np.ndarray
+    route_frame: np.ndarray
 
 
 # ------------------------------------------------------------------------------------------ device side
@@ -83,7 +86,7 @@ def _plan_core(state0, route, targets, last, segment, land, buffered, weights, m
         init = init_stage_traced(state0, route, targets, last, land, weights, model, settings, segment)
         cost = init.cost[0]
         return SmoothPlan(init.controls[0], init.controls[:n], init.psi, cost, cost, jnp.zeros_like(cost),
-                          jnp.asarray(True), jnp.asarray(0, jnp.int32), jnp.asarray(0, jnp.int32))
+                          jnp.asarray(True), jnp.asarray(0, jnp.int32), jnp.asarray(0, jnp.int32), jnp.asarray(True))
     st = step_traced(state0, route, targets, last, segment, land, buffered, weights, model, solver, settings=settings,
                      n_starts=n_starts, batch=batch, previous=previous)
     return _from_step(st)
@@ -91,7 +94,7 @@ def _plan_core(state0, route, targets, last, segment, land, buffered, weights, m
 
 def _from_step(st) -> SmoothPlan:
     return SmoothPlan(st.apply, st.controls, st.init.psi, st.cost, st.warm_cost, st.violation, st.used_warm,
-                      st.solver.status, st.iterations)
+                      st.solver.status, st.iterations, st.route_frame)
 
 
 def _plan_batch_core(states, route, targets, last, segments, land, buffered, weights, model, solver, previous=None, *,
@@ -163,8 +166,8 @@ class SmoothSBMPCPlanner:
 
     Args:
         polygons: land polygons in the NED frame [m] (shapely Polygons, rings ``[n, 2]`` or tuples of rings,
-            as :class:`psbmpc_jax.Situation` polygons); the land chart (N_TP) and the chart buffered by
-            ``settings.r_dom`` (corridor) are packed once per local origin.
+            as :class:`psbmpc_jax.Situation` polygons); the land chart (N_TP, clearance) and the chart buffered by
+            ``settings.corridor_land_buffer`` (corridor) are packed once per local origin.
         weights, model, settings: :class:`SmoothWeights` (numeric, traced), :class:`ShipModel`,
             :class:`SmoothSettings` (static); None gives the defaults.
         solver: the DOCP's :class:`~psbmpc_jax.nlp.SolverSettings`; None: :data:`psbmpc_jax.smooth.docp.DOCP_SOLVER`.
@@ -231,7 +234,8 @@ class SmoothSBMPCPlanner:
         if key not in self._charts:
             shifted = tuple(tuple(r - o for r in poly) for poly in self.polygons)
             land = pack_world(shifted, PlannerConfig(dtype=self.dtype.name)).polygons
-            buf = land if self.init_only else buffered_chart(shifted, self.settings.r_dom, dtype=self.dtype.name)
+            buf = land if self.init_only else buffered_chart(shifted, self.settings.corridor_land_buffer,
+                                                             dtype=self.dtype.name)
             self._charts[key] = (land, buf)
         return self._charts[key]
 
