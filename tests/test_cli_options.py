@@ -28,7 +28,7 @@ def test_help_texts_are_plain():
     parser = build_parser()
     texts = {"psbmpc-jax": parser.format_help()}
     texts.update({name: p.format_help() for name, p in _subparsers(parser).items()})
-    assert set(texts) == {"psbmpc-jax", "example", "run", "bench", "report", "evaluate"}
+    assert set(texts) == {"psbmpc-jax", "example", "run", "bench", "report", "evaluate", "generate"}
     for name, text in texts.items():
         assert "``" not in text and ":func:" not in text and ":class:" not in text, name
     top = texts["psbmpc-jax"]
