@@ -75,6 +75,29 @@ def _take(table, idx):
     return jnp.take_along_axis(table, idx[:, None], axis=1)[:, 0]
 
 
+def los_step(path: Path, z, x, y, lateral_offset, lookahead, R_a):
+    """One step of the LOS law at position ``(x, y)`` on active segment ``z``: the waypoint switch (within R_a of
+    the segment's end waypoint, or past the segment's end), then χ_los = α_z + atan(−(e − offset)/Δ) (α_z alone past
+    the last waypoint).  Returns ``(z, zi, chi_los)``: the segment after the switch, its clipped table index and
+    the LOS course.  :func:`los_rollout` steps it; the Smooth-SBMPC guidance frame evaluates it along a given
+    trajectory, so both use the same arithmetic."""
+    last_seg = path.n - 2
+
+    def seg_geometry(z):
+        zi = jnp.minimum(z, last_seg)
+        return (_take(path.wx, zi), _take(path.wy, zi), _take(path.ca, zi), _take(path.sa, zi), zi)
+
+    wzx, wzy, ca, sa, zi = seg_geometry(z)
+    along = (x - wzx) * ca + (y - wzy) * sa
+    nx, ny = _take(path.wx, zi + 1) - x, _take(path.wy, zi + 1) - y
+    switch = (z <= last_seg) & ((nx * nx + ny * ny <= R_a * R_a) | (along >= _take(path.seg_len, zi)))
+    z = z + switch.astype(z.dtype)
+    wzx, wzy, ca, sa, zi = seg_geometry(z)
+    e = -(x - wzx) * sa + (y - wzy) * ca
+    chi_los = _take(path.alpha, zi) + jnp.where(z <= last_seg, jnp.arctan(-(e - lateral_offset) / lookahead), 0.0)
+    return z, zi, chi_los
+
+
 def los_rollout(x0, path: Path, chi_offsets, U_cmd, lateral_offset, lookahead, R_a, T_chi, T_U, dt,
                 unroll: int = 1, z0=None, return_segment: bool = False, seg_speed=None, kernel: str = "scan"):
     """Roll the kinematic model with LOS guidance forward N steps for R rows.
@@ -105,24 +128,11 @@ def los_rollout(x0, path: Path, chi_offsets, U_cmd, lateral_offset, lookahead, R
     if kernel not in ("scan", "pallas"):
         raise ValueError(f"rollout kernel must be 'scan' or 'pallas', got {kernel!r}")
     n_rows = x0.shape[0]
-    last_seg = path.n - 2
-
-    def seg_geometry(z):
-        zi = jnp.minimum(z, last_seg)
-        return (_take(path.wx, zi), _take(path.wy, zi), _take(path.ca, zi), _take(path.sa, zi), zi)
 
     def step(carry, xs):
         x, y, chi, U, z = carry
         chi_off, u_ref = xs
-        wzx, wzy, ca, sa, zi = seg_geometry(z)
-        along = (x - wzx) * ca + (y - wzy) * sa
-        nx, ny = _take(path.wx, zi + 1) - x, _take(path.wy, zi + 1) - y
-        switch = (z <= last_seg) & ((nx * nx + ny * ny <= R_a * R_a) | (along >= _take(path.seg_len, zi)))
-        z = z + switch.astype(z.dtype)
-        wzx, wzy, ca, sa, zi = seg_geometry(z)
-        e = -(x - wzx) * sa + (y - wzy) * ca
-        chi_los = _take(path.alpha, zi) + jnp.where(
-            z <= last_seg, jnp.arctan(-(e - lateral_offset) / lookahead), 0.0)
+        z, zi, chi_los = los_step(path, z, x, y, lateral_offset, lookahead, R_a)
         chi_cmd = chi_los + chi_off
         if seg_speed is not None:
             leg_u = _take(seg_speed, zi)

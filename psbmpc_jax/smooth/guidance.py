@@ -13,8 +13,8 @@ the re-expressed sequence, rolled out in the other frame, gives the same command
 (Ψ is reproduced to rounding); :func:`from_frame` is the inverse, for the DOCP's result.
 
 :func:`los_courses` evaluates the LOS law of :func:`psbmpc_jax.ownship.los_rollout` (waypoint switching
-included) at given positions; it repeats that function's arithmetic term by term, so the courses are the ones
-the rollout used.
+included) at given positions with the rollout's own step (:func:`psbmpc_jax.ownship.los_step`), so the courses
+are the ones the rollout used.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ import jax
 import jax.numpy as jnp
 
 from ..numerics import wrap_angle
-from ..ownship import Path
+from ..ownship import Path, los_step
 from .init_stage import CHI_D_MODES
 
 #: Length [m] of the DOCP's line reference beyond the ship (the line is followed without switching; its far end
@@ -34,34 +34,18 @@ LINE_LENGTH = 1.0e6
 MIN_LINE = 1.0e-6
 
 
-def _take(table, idx):
-    return jnp.take(table[0], idx, mode="clip")
-
-
 def los_courses(path: Path, xy, z0, lookahead, R_a):
     """The LOS course ``[K]`` at positions ``xy [K, 2]`` visited in order, starting on segment ``z0`` of the
     single-row ``path``: at each position the waypoint switch, then χ_los = α_z + atan(−e/Δ) (α_z alone past the
-    last waypoint), exactly as :func:`psbmpc_jax.ownship.los_rollout` computes it.  Also returns the segment
-    used at each position ``[K]``."""
-    last_seg = path.n[0] - 2
-
-    def geometry(z):
-        zi = jnp.minimum(z, last_seg)
-        return _take(path.wx, zi), _take(path.wy, zi), _take(path.ca, zi), _take(path.sa, zi), zi
+    last waypoint), by :func:`psbmpc_jax.ownship.los_step`, the step :func:`psbmpc_jax.ownship.los_rollout`
+    takes.  Also returns the segment used at each position ``[K]``."""
+    zero = jnp.zeros((1,), xy.dtype)
 
     def step(z, p):
-        x, y = p[0], p[1]
-        wzx, wzy, ca, sa, zi = geometry(z)
-        along = (x - wzx) * ca + (y - wzy) * sa
-        nx, ny = _take(path.wx, zi + 1) - x, _take(path.wy, zi + 1) - y
-        switch = (z <= last_seg) & ((nx * nx + ny * ny <= R_a * R_a) | (along >= _take(path.seg_len, zi)))
-        z = z + switch.astype(z.dtype)
-        wzx, wzy, ca, sa, zi = geometry(z)
-        e = -(x - wzx) * sa + (y - wzy) * ca
-        chi = _take(path.alpha, zi) + jnp.where(z <= last_seg, jnp.arctan(-(e - 0.0) / lookahead), 0.0)
-        return z, (chi, z)
+        z, _, chi = los_step(path, z, p[0:1], p[1:2], zero, lookahead, R_a)
+        return z, (chi[0], z[0])
 
-    _, (chi, seg) = jax.lax.scan(step, jnp.asarray(z0, jnp.int32), xy)
+    _, (chi, seg) = jax.lax.scan(step, jnp.asarray(z0, jnp.int32).reshape(1), xy)
     return chi, seg
 
 
