@@ -29,10 +29,8 @@ from __future__ import annotations
 
 import argparse
 import copy
-import datetime as dt
 import json
 import pathlib
-import platform
 import sys
 import time
 
@@ -41,7 +39,7 @@ import numpy as np
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))   # experiments/: comparison.py
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 from comparison import output_file, utc_stamp  # noqa: E402
-from common import STOP_FACTOR, Recorder, course_rate, cv_noise_method, min_target_distance, stop_stats  # noqa: E402
+from common import STOP_FACTOR, Recorder, course_rate, cv_noise_method, min_target_distance, stop_stats, write_record  # noqa: E402
 
 STUDY = pathlib.Path(__file__).resolve().parent
 VARIANTS = {"paper": ("none", {}), "colregs_heading": ("colregs_heading", {}),
@@ -126,7 +124,6 @@ def main(argv=None) -> int:
         p.error(f"--variants must be of {list(VARIANTS)} (got {bad}); --runs >= 1; --sigma-a >= 0")
     out = output_file(args.out, STUDY / "results" / f"case_b_{utc_stamp()}.json", force=args.force)
 
-    import jax
 
     from psbmpc_jax.methods import register
     from psbmpc_jax.provenance import commit
@@ -165,12 +162,7 @@ def main(argv=None) -> int:
         doc["decomposition"] = {"draw": 0, "run": 0, "variant": "paper", "stop_stats": stop_stats(res.t, res.states[0, 0, :, 3]),
                                 "updates": len(rec.seen), "stop_updates": rows}
         print("decomposition", json.dumps(rows[:3], indent=1))
-    doc.update({"commit": started_at, "wall_s": round(time.perf_counter() - t_all, 1), "device": str(jax.devices()[0]),
-                "platform": platform.platform(),
-                "versions": {"python": sys.version.split()[0], "jax": jax.__version__, "numpy": np.__version__},
-                "command": "python experiments/stop_remedy/case_b.py " + " ".join(argv if argv is not None else sys.argv[1:]),
-                "utc": dt.datetime.now(dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")})
-    out.write_text(json.dumps(doc, indent=1) + "\n")
+    write_record(out, doc, "case_b.py", argv, started_at, t_all)
     return 0
 
 

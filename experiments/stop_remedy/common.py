@@ -5,6 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from psbmpc_jax.safe_io import atomic_write_text
+from psbmpc_jax.sim.stops import stop_intervals
+
 #: A ship is stopped while its speed over ground is at or below this [m/s] (the library's metrics use the same).
 STOP_SPEED = 0.2
 #: A behaviour stops when its first maneuver's speed factor is below this.
@@ -15,19 +18,31 @@ def stop_stats(t, speed, threshold: float = STOP_SPEED) -> dict:
     """Stops of one track: ``count`` (maximal intervals with speed <= threshold), ``longest_s`` (the longest,
     measured as the time between its first and last stopped sample), ``first_t_s`` (start of the first) and
     ``stopped_s`` (total)."""
-    t, s = np.asarray(t, float), np.asarray(speed, float) <= threshold
-    runs, start = [], None
-    for k, stopped in enumerate(s):
-        if stopped and start is None:
-            start = k
-        if start is not None and (not stopped or k == len(s) - 1):
-            end = k if stopped else k - 1
-            runs.append((start, end))
-            start = None
-    lengths = [t[b] - t[a] for a, b in runs]
-    return {"count": len(runs), "longest_s": float(max(lengths, default=0.0)),
-            "first_t_s": None if not runs else float(t[runs[0][0]]),
-            "stopped_s": float(np.sum(s) * (t[1] - t[0])) if len(t) > 1 else 0.0}
+    iv = stop_intervals(t, speed, threshold, 0.0)          # every stretch, however short: the library's rule
+    t, slow = np.asarray(t, float), np.asarray(speed, float) <= threshold
+    return {"count": len(iv), "longest_s": float(max((b - a for a, b in iv), default=0.0)),
+            "first_t_s": iv[0][0] if iv else None,
+            "stopped_s": float(np.sum(slow) * (t[1] - t[0])) if len(t) > 1 else 0.0}
+
+
+def write_record(out, doc: dict, script: str, argv, started_at: str, t_all: float) -> None:
+    """Add the run's provenance (commit at the start, wall time, device, platform, versions, the command, UTC time)
+    to ``doc`` and write it to ``out`` as JSON, atomically."""
+    import datetime as dt
+    import json
+    import platform
+    import sys
+    import time
+
+    import jax
+
+    doc.update({"commit": started_at, "wall_s": round(time.perf_counter() - t_all, 1), "device": str(jax.devices()[0]),
+                "platform": platform.platform(),
+                "versions": {"python": sys.version.split()[0], "jax": jax.__version__, "numpy": np.__version__},
+                "command": f"python experiments/stop_remedy/{script} "
+                           + " ".join(argv if argv is not None else sys.argv[1:]),
+                "utc": dt.datetime.now(dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")})
+    atomic_write_text(out, json.dumps(doc, indent=1) + "\n")
 
 
 def course_rate(t, chi) -> float:

@@ -13,10 +13,8 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import datetime as dt
 import json
 import pathlib
-import platform
 import sys
 import time
 
@@ -25,7 +23,7 @@ import numpy as np
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1]))   # experiments/: comparison.py
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 from comparison import output_file, utc_stamp  # noqa: E402
-from common import course_rate, min_target_distance, stop_stats  # noqa: E402
+from common import course_rate, min_target_distance, stop_stats, write_record  # noqa: E402
 
 STUDY = pathlib.Path(__file__).resolve().parent
 VARIANTS = {"paper": "none", "colregs_heading": "colregs_heading"}
@@ -90,7 +88,6 @@ def main(argv=None) -> int:
         p.error(f"--variants must be of {list(VARIANTS)}, --runs >= 1")
     out = output_file(args.out, STUDY / "results" / f"nidelva_{utc_stamp()}.json", force=args.force)
 
-    import jax
 
     from psbmpc_jax.provenance import commit
     from psbmpc_jax.scenario import load_scenario
@@ -120,12 +117,7 @@ def main(argv=None) -> int:
             "closest_target_m": min(r["closest_target_m"] for r in rows),
             "closest_land_m": min(r["closest_land_m"] for r in rows), "per_run": rows}
         print(v, json.dumps({k: x for k, x in doc["results"][v].items() if k != "per_run"}), flush=True)
-    doc.update({"commit": started_at, "wall_s": round(time.perf_counter() - t_all, 1), "device": str(jax.devices()[0]),
-                "platform": platform.platform(),
-                "versions": {"python": sys.version.split()[0], "jax": jax.__version__, "numpy": np.__version__},
-                "command": "python experiments/stop_remedy/nidelva.py " + " ".join(argv if argv is not None else sys.argv[1:]),
-                "utc": dt.datetime.now(dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")})
-    out.write_text(json.dumps(doc, indent=1) + "\n")
+    write_record(out, doc, "nidelva.py", argv, started_at, t_all)
     return 0
 
 

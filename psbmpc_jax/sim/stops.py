@@ -40,17 +40,7 @@ def longest_stop(t, speed, threshold=STOP_SPEED_MPS) -> float:
     """The longest stretch of time [s] during which ``speed`` stays at or below ``threshold``: from the first
     sample of a run of such samples to its last (0 when no sample, or one isolated sample, is that slow).  No
     minimum duration: :func:`psbmpc_jax.sim.stops.stop_metrics` counts the stops of the metrics."""
-    t, speed = _check(t, speed)
-    slow = speed <= positive(threshold, "threshold", allow_zero=True)
-    best, start = 0.0, None
-    for k, is_slow in enumerate(slow):
-        if is_slow and start is None:
-            start = k
-        if start is not None and (not is_slow or k == slow.size - 1):
-            end = k if is_slow else k - 1
-            best = max(best, float(t[end] - t[start]))
-            start = None
-    return best
+    return max((b - a for a, b in stop_intervals(t, speed, threshold, 0.0)), default=0.0)
 
 
 def stop_intervals(t, speed, threshold: float = STOP_SPEED_MPS,
