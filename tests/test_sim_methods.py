@@ -294,7 +294,7 @@ class PreviousRecorder:
         controls = np.stack([np.ones_like(chi), chi], axis=-1)
         zero = np.zeros(R)
         return smooth.StepPlan(controls[:, 0], controls, np.zeros((R, 9, 4)), zero, zero, zero, np.ones(R, bool),
-                              zero.astype(int), zero.astype(int))
+                              zero.astype(int), zero.astype(int), np.zeros(R, bool))
 
 
 def test_the_simulator_hands_the_shifted_previous_plan_to_the_next_update(monkeypatch):
