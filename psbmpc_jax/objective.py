@@ -14,9 +14,12 @@ It is the same cost as the grid search, term by term: ``vmap(objective)`` over a
 difference is the layout: every (time, obstacle, scenario) point goes through the collision estimator (no
 compaction, no ``while_loop``), so forward and reverse mode both work.
 
-Smoothness: the collision term with the ``quadrature`` estimator, the grounding term (exact or grid) and
-the path term are piecewise smooth in the controls; the COLREGS indicator and the ``mc``/``ce`` estimators
-are piecewise constant (their gradient is 0 almost everywhere — finite, but no descent direction).  With
+Smoothness: the collision term with the ``quadrature`` estimator, the grounding term (exact or grid; on a
+grid line the derivative of the + side cell) and the path term are piecewise smooth in the controls; the
+COLREGS indicator is piecewise constant (its gradient is 0 — finite, but no descent direction).  The
+``mc``/``ce`` estimates are piecewise constant too; their derivative is the score-function estimate of the
+collision probability's derivative from the same samples (:func:`psbmpc_jax.costs.collision.pc_mc`):
+unbiased, the quadrature's derivative up to sampling error, not the derivative of the sampled value.  With
 ``smooth=True`` the collision term uses the quadrature estimator whatever ``config.estimator`` says.
 """
 
