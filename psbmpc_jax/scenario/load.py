@@ -224,6 +224,19 @@ def _builtin_path(name: str) -> pathlib.Path:
                      f"(or give the path of a .yaml / .yml file)")
 
 
+def read_utf8(path, what: str) -> str:
+    """The text of ``path``, UTF-8 (a byte-order mark is skipped); a file in another encoding raises ValueError
+    naming the file, the encoding expected and where the first byte that is not UTF-8 is (byte offset, line)."""
+    raw = pathlib.Path(path).read_bytes()
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = raw.count(b"\n", 0, exc.start) + 1
+        raise ValueError(
+            f"{path}: a {what} must be UTF-8 text; byte {exc.start} (line {line}) is 0x{raw[exc.start]:02x}, which "
+            f"is not UTF-8 ({exc.reason}). Save the file as UTF-8 (e.g. iconv -f latin1 -t utf-8)") from None
+
+
 def load_scenario(path_or_name, *, land_checks: str = "error", method: str | None = None) -> Scenario:
     """Load and validate a scenario: a path to a ``.yaml`` / ``.yml`` file, or the name of a built-in scenario
     (:func:`builtin_scenarios`, e.g. ``"head_on"``, ``"imazu_01"``).
@@ -255,7 +268,7 @@ def load_scenario(path_or_name, *, land_checks: str = "error", method: str | Non
     else:
         path = _builtin_path(s)
     where = str(path)
-    data = yaml_load(path.read_text(encoding="utf-8"), where)
+    data = yaml_load(read_utf8(path, "scenario file"), where)
     if not isinstance(data, dict):
         raise ValueError(f"{where}: a scenario file must hold a mapping at the top level, got "
                          f"{type(data).__name__}")
