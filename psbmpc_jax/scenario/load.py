@@ -9,6 +9,7 @@ import numpy as np
 import shapely
 import shapely.validation
 from shapely.geometry import Polygon
+from .. import limits as resources
 from .. import scenario_checks as limits
 from ..charts import count_vertices, to_ring_sets
 from ..checks import integer, multiple_of
@@ -124,6 +125,11 @@ def scenario_from_dict(data: dict, base_dir=None, source: str | None = None, *, 
                          f"{len(tl) + 1} ships need about {mem / 1024 ** 3:.1f} GiB of simulator memory; at most "
                          f"{limits.MAX_SIM_MEMORY_BYTES / 1024 ** 3:.0f} GiB allowed -- fewer runs, a shorter "
                          f"duration_s or a larger dt_s")
+
+    # scoring every run after the simulation: checked now, not after the simulation has run
+    resources.check_evaluation(duration, evaluation.sample_interval_s, len(tl) + 1, "own",
+                               setting="evaluation.sample_interval_s",
+                               hint="Use a larger evaluation.sample_interval_s (default 1 s)")
 
     ctx = dict(chart=chart, duration=duration, params=mpc.params, origin_latlon=origin_ll, method=mpc.method)
     own = read_ship(data["own_ship"], "own_ship", own=True, ctx=ctx)
