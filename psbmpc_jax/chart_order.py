@@ -47,8 +47,8 @@ def check_near(lon, lat, ref_lon: float, ref_lat: float, near_m: float, what: st
             f"{what}: the chart's coordinates look like [lat, lon] order: read as [lon, lat] (the GeoJSON order, "
             f"RFC 7946) its centre is at lat {c_lat:.4f}, lon {c_lon:.4f}, "
             f"{great_circle_m(c_lon, c_lat, ref_lon, ref_lat) / 1000:.0f} km from lat {ref_lat:.4f}, lon "
-            f"{ref_lon:.4f}; exchanged it would be within {near_m / 1000:.0f} km. Write every position as "
-            f"[lon, lat]")
+            f"{ref_lon:.4f}; exchanged it would be within {near_m / 1000:.0f} km. Write every position of the chart "
+            f"as [lon, lat] (or, if the chart is right, check that {what} is not the one with lat and lon exchanged)")
 
 
 __all__ = ["swapped_order", "check_near", "great_circle_m"]

@@ -182,5 +182,89 @@ def check_evaluation(span_s: float, dt: float, n_vessels: int, pairs: str = "own
     return n
 
 
+# ------------------------------------------------------------------------------------------------ the solve
+#: Bytes per (time step, behaviour) of one solve's buffers in float32 (scaled by itemsize / 4): XLA's compiled
+#: memory analysis (temporaries + outputs) of :func:`psbmpc_jax.solve.solve` fitted over T = 150 / 600 s
+#: (dt 0.5 s), 64 / 1 024 behaviours, 5 / 16 / 20 obstacle scenarios (docs/limits.md): 18.5 + 2.1 per obstacle
+#: scenario (temporaries), 24.5 + 0.07 per obstacle scenario (the evaluation returned: trajectories, costs),
+#: 24 with land (the grounding search; measured with one polygon).
+SOLVE_PER_POINT = dict(base=43.0, per_scenario=2.2, land=24.0)
+#: The collision estimator's chunk buffer: chunk_rows x time_block x width x itemsize x this factor (measured: mc
+#: 1.00 at n_samples 2e4 / 8e4, ce 4.25 at ce_max_iter 2 and 6, quadrature: n_quad nodes).
+ESTIMATOR_FACTOR = dict(quadrature=1.0, mc=1.0, ce=4.25)
+#: Compiling and running JAX: the process's own memory besides the solve's buffers (measured RSS after compiling
+#: one solve: 0.5 GB without land, 1.6-1.9 GB with the bounded grounding search).
+RUNTIME_OVERHEAD = 2 * 2 ** 30
+
+
+#: The psbmpc_2020 risk term (Monte Carlo + Kalman filter): bytes per (time step, obstacle scenario, behaviour,
+#: sample) in float32 (measured: 4.25 at n_mc 100 / 1 000 / 4 000; peak RSS rose 314 MB for the 328 MB estimated).
+MCSKF_PER_SAMPLE = 4.25
+
+
+def solve_parts(config, n_behaviours: int, n_obstacle_scenarios: int, land: bool = True,
+                n_mc: int = 0) -> dict:
+    """The estimate of :func:`solve_bytes` by what drives it: ``{"horizon": ..., "estimator": ..., "n_mc": ...}``
+    [bytes] (the per-point buffers, the collision estimator's chunk and sample table, the psbmpc_2020 term)."""
+    item = 8 if config.dtype == "float64" else 4
+    points = (config.n_steps + 1) * float(n_behaviours)
+    c = SOLVE_PER_POINT
+    per_point = c["base"] + c["per_scenario"] * n_obstacle_scenarios + (c["land"] if land else 0.0)
+    width = {"quadrature": config.n_quad, "mc": config.n_samples}.get(config.estimator, config.n_samples)
+    chunk = config.chunk_rows * min(config.time_block, config.n_steps + 1) * float(width) * item
+    table = {"quadrature": 0, "mc": 2 * config.n_samples,
+             "ce": 2 * config.n_samples * (config.ce_max_iter + 1)}[config.estimator] * item
+    return {"horizon": per_point * points * item / 4,
+            "estimator": ESTIMATOR_FACTOR[config.estimator] * chunk + table,
+            "n_mc": MCSKF_PER_SAMPLE * points * n_obstacle_scenarios * float(n_mc) * item / 4}
+
+
+def solve_bytes(config, n_behaviours: int, n_obstacle_scenarios: int, land: bool = True, n_mc: int = 0) -> float:
+    """Estimated peak memory [bytes] of one :func:`psbmpc_jax.solve.solve` call of ``config`` (a
+    :class:`~psbmpc_jax.params.PlannerConfig`) with ``n_behaviours`` behaviours and ``n_obstacle_scenarios``
+    (obstacles x scenarios, padded), ``n_mc`` samples of the psbmpc_2020 risk term (0: not used), without the
+    runtime overhead (:data:`RUNTIME_OVERHEAD`)."""
+    return sum(solve_parts(config, n_behaviours, n_obstacle_scenarios, land, n_mc).values())
+
+
+def padded_sizes(n_behaviours: int, n_obstacles: int, n_ps: int) -> tuple[int, int]:
+    """The device capacities a solve of these sizes gets by default (as :mod:`psbmpc_jax.packing` buckets them,
+    without importing JAX): behaviours to a multiple of 64, obstacles to a power of two (at least 1), scenarios
+    exact up to 9 then to a multiple of 8.  Returns ``(B, O x S)``."""
+    o = max(int(n_obstacles), 1)
+    o = 1 << (o - 1).bit_length()
+    s = n_ps if n_ps <= 9 else -(-n_ps // 8) * 8
+    return -(-int(n_behaviours) // 64) * 64, o * s
+
+
+#: What to change for each part of the estimate (the message names the largest).
+SOLVE_SETTINGS = {"horizon": "PlannerConfig.T / dt (the horizon) and the behaviours",
+                  "estimator": "PlannerConfig.n_samples (with chunk_rows x time_block)",
+                  "n_mc": "the psbmpc_2020 term's n_mc"}
+
+
+def check_solve(config, n_behaviours: int, n_obstacle_scenarios: int, land: bool = True, *, n_mc: int = 0,
+                settings: dict | None = None, solves: int = 1, platform: str | None = None,
+                limit: tuple[int | None, str] | None = None) -> float:
+    """:func:`check` of ``solves`` simultaneous solves (a vmapped batch) plus :data:`RUNTIME_OVERHEAD`; returns the
+    estimate.  The message names the setting behind the largest part of the estimate (``settings`` maps the
+    parts of :func:`solve_parts` to the caller's names; default :data:`SOLVE_SETTINGS`)."""
+    parts = solve_parts(config, n_behaviours, n_obstacle_scenarios, land, n_mc)
+    est = solves * sum(parts.values()) + RUNTIME_OVERHEAD
+    names = {**SOLVE_SETTINGS, **(settings or {})}
+    top = max(parts, key=parts.get)
+    what = (f"{'one solve' if solves == 1 else f'{solves} solves at once'} ({config.n_steps} steps x "
+            f"{n_behaviours} behaviours x {n_obstacle_scenarios} obstacle scenarios, estimator {config.estimator}"
+            + (f" with n_samples = {config.n_samples}" if config.estimator != "quadrature" else "")
+            + (f", n_mc = {n_mc}" if n_mc else "") + "; "
+            + ", ".join(f"{k} {fmt_bytes(v)}" for k, v in parts.items() if v) + ")")
+    hints = {"horizon": "A shorter horizon T (or a larger dt) or fewer behaviours",
+             "estimator": "Fewer samples, or a smaller chunk_rows (the estimator's buffer is chunk_rows x "
+                          "time_block x n_samples)",
+             "n_mc": "Fewer n_mc samples, a shorter horizon or fewer behaviours"}
+    check(names[top], est, what, hint=hints[top], platform=platform, limit=limit)
+    return est
+
+
 __all__ = ["ResourceError", "HEADROOM", "memory_limit", "check", "parse_bytes", "fmt_bytes", "evaluation_samples",
-           "evaluation_bytes", "check_evaluation"]
+           "evaluation_bytes", "check_evaluation", "solve_bytes", "solve_parts", "check_solve", "padded_sizes", "RUNTIME_OVERHEAD"]

@@ -170,3 +170,85 @@ def test_a_file_path_is_checked_too(tmp_path):
     p.write_text(yaml.safe_dump(d))
     with pytest.raises(ValueError, match=r"s\.yaml: origin_latlon: the chart's coordinates look like"):
         load_scenario(p)
+
+
+# ------------------------------------------------------------------------------------------------ the solve
+def _solve_scenario(method="psbmpc", **mpc):
+    return {"name": "t", "simulation": {"dt_s": 0.5, "duration_s": 400},
+            "mpc": {"preset": "nidelva", "update_period_s": 5, "method": method, **mpc},
+            "own_ship": {"name": "OS", "position_m": [0, 0], "course_deg": 0, "speed_mps": 2},
+            "targets": [{"name": "TS1", "position_m": [600, 0], "course_deg": 180, "speed_mps": 2}]}
+
+
+@pytest.mark.parametrize("mpc, method, match", [
+    (dict(config={"estimator": "mc", "n_samples": 10 ** 7}), "psbmpc",
+     r"mpc\.config\.n_samples: one solve .* needs about 155 GiB of memory; the limit is 6\.4 GiB"),
+    (dict(config={"estimator": "ce", "n_samples": 10 ** 6}), "psbmpc", r"mpc\.config\.n_samples: .* 66\.\d GiB"),
+    (dict(sbmpc={"n_mc": 10 ** 6}), "psbmpc_2020", r"mpc\.sbmpc\.n_mc: .*n_mc = 1000000.* needs about 1\.19 TiB"),
+    (dict(config={"T": 50000}), "psbmpc", r"mpc\.config\.T \(with dt_s and the behaviours\): one solve \(100000 "
+                                          r"steps x 1024 behaviours x 5 obstacle scenarios"),
+])
+def test_solves_that_cannot_fit_are_refused_at_load(monkeypatch, mpc, method, match):
+    monkeypatch.setenv("PSBMPC_MEMORY_LIMIT", "8GiB")
+    t0 = time.perf_counter()
+    with pytest.raises(limits.ResourceError, match=match):
+        scenario_from_dict(_solve_scenario(method, **mpc), land_checks="off")
+    assert time.perf_counter() - t0 < 5.0
+    monkeypatch.setenv("PSBMPC_MEMORY_LIMIT", "4TiB")                     # a machine that has it: accepted
+    scenario_from_dict(_solve_scenario(method, **mpc), land_checks="off")
+
+
+def test_planner_refuses_before_compiling(monkeypatch):
+    import jax
+
+    from psbmpc_jax import Obstacle, OwnShip, Planner, PlannerConfig, Situation
+
+    own = OwnShip([0.0, 0.0, 0.0, 2.0], [[0.0, 0.0], [500.0, 0.0]], 2.0)
+    sit = Situation(own, (Obstacle([60.0, 2.0, -2.0, 0.0], np.diag([4.0, 4.0, 0.1, 0.1]), n_ps=3),))
+    monkeypatch.setenv("PSBMPC_MEMORY_LIMIT", "8GiB")
+    with pytest.raises(limits.ResourceError, match=r"PlannerConfig\.n_samples .* 155 GiB"):
+        Planner(PlannerConfig(estimator="mc", n_samples=10 ** 7)).prepare(sit, key=jax.random.key(0))
+
+
+def _compiled_bytes(config, behaviours, terms=None, n_ps=5):
+    """XLA's memory analysis (temporaries + outputs) of one compiled solve, and its padded sizes."""
+    import jax
+
+    from psbmpc_jax import Obstacle, OwnShip, Planner, Situation
+    from psbmpc_jax.evaluate import DEFAULT_TERMS
+    from psbmpc_jax.solve import solve_arrays
+
+    terms = DEFAULT_TERMS if terms is None else terms
+    own = OwnShip([0.0, 0.0, 0.0, 2.0], [[0.0, 0.0], [5000.0, 0.0]], 2.0)
+    sit = Situation(own, (Obstacle([300.0, 5.0, -2.0, 0.0], np.diag([4.0, 4.0, 0.1, 0.1]), n_ps=n_ps),))
+    inputs, state, params, samples = Planner(config, behaviours=behaviours, terms=terms).prepare(
+        sit, key=jax.random.key(0))
+    comp = jax.jit(solve_arrays, static_argnames=("config", "terms")).lower(
+        inputs, state, params, samples, config=config, terms=terms).compile()
+    ma = comp.memory_analysis()
+    return (ma.temp_size_in_bytes + ma.output_size_in_bytes, int(inputs.behaviours.offsets.shape[0]),
+            int(np.prod(np.shape(inputs.obstacles.probs))))
+
+
+def test_solve_estimate_matches_the_compiled_memory():
+    """The estimate against XLA's own analysis of the compiled solve (the fit's data: within 5 %; a linear
+    model, so a wrong coefficient shows at once)."""
+    from psbmpc_jax import PlannerConfig, paper_behaviours
+    from psbmpc_jax.methods.sbmpc_family import SbmpcSettings, psbmpc2020_terms
+
+    cases = [(PlannerConfig(T=300.0, dt=0.5), paper_behaviours(2), None, 0),
+             (PlannerConfig(T=150.0, dt=0.5, estimator="mc", n_samples=40_000), paper_behaviours(1), None, 0),
+             (PlannerConfig(T=150.0, dt=0.5), paper_behaviours(1),
+              psbmpc2020_terms(SbmpcSettings(n_mc=2000), with_grounding=False), 2000)]
+    for config, beh, terms, n_mc in cases:
+        measured, n_b, n_os = _compiled_bytes(config, beh, terms, n_ps=1 if n_mc else 5)
+        est = limits.solve_bytes(config, n_b, n_os, land=False, n_mc=n_mc)
+        assert abs(est - measured) <= 0.05 * measured, (config, est, measured)
+
+
+def test_padded_sizes_are_the_packing_capacities():
+    from psbmpc_jax.packing import bucket, bucket_behaviours, bucket_scenarios
+
+    for n_b, n_o, n_ps in ((39, 0, 1), (1014, 1, 5), (1015, 3, 11), (64, 5, 99)):
+        assert limits.padded_sizes(n_b, n_o, n_ps) == (bucket_behaviours(n_b),
+                                                        bucket(max(n_o, 1)) * bucket_scenarios(n_ps))

@@ -198,9 +198,30 @@ def scenario_from_dict(data: dict, base_dir=None, source: str | None = None, *, 
     rings = tuple(tuple(np.asarray(r, dtype=float) for r in rs) for rs in to_ring_sets(polys)) if polys else ()
     info.update(rdp_eps_m=rdp_eps, clip_m=clip, n_polygons=len(rings),
                 n_vertices=int(sum(len(r) for rs in rings for r in rs)))
+    _check_solve_memory(mpc, len(targets), bool(rings))
     return Scenario(name=name, description=description, own_ship=own, targets=targets, sensor=sensor, mpc=mpc,
                     polygons=rings, chart_info=info, dt=dt, duration=duration, runs=runs, seed=seed,
                     collision_distance=coll, source=source, evaluation=evaluation)
+
+
+#: The methods whose solve is the grid search (:func:`psbmpc_jax.solve.solve`), with their scenarios per obstacle
+#: (None: ``mpc.n_ps``); their memory is estimated at load (:func:`psbmpc_jax.limits.check_solve`).  The
+#: smooth and two-level planners are not estimated.
+GRID_SEARCH_N_PS = {"psbmpc": None, "psbmpc_refine": None, "sbmpc": 1, "psbmpc_2020": 1, "informed_sbmpc": 1}
+
+
+def _check_solve_memory(mpc, n_targets: int, land: bool) -> None:
+    """Refuse a grid-search configuration whose solve cannot fit in memory (one solve: the CPU's loop batch mode;
+    the vmap batch mode holds one per run and ship at once), before anything is compiled."""
+    if mpc.method not in GRID_SEARCH_N_PS:
+        return
+    n_ps = GRID_SEARCH_N_PS[mpc.method] or mpc.n_ps
+    n_b, n_os = resources.padded_sizes(len(mpc.behaviours), n_targets, n_ps)   # no JAX import while loading
+    sb = mpc.sections.get("sbmpc")
+    n_mc = int(getattr(sb, "n_mc", 0)) if mpc.method == "psbmpc_2020" else 0
+    resources.check_solve(mpc.config, n_b, n_os, land, n_mc=n_mc,
+                          settings={"horizon": "mpc.config.T (with dt_s and the behaviours)",
+                                    "estimator": "mpc.config.n_samples", "n_mc": "mpc.sbmpc.n_mc"})
 
 
 def estimator_key(scenario: Scenario, seed: int | None = None):

@@ -158,7 +158,8 @@ def chart_source(d, base_dir, origin_ll=None):
         source = str(p)
     if origin_ll is not None:  # the geographic origin, projected to the chart's UTM zone
         info_crs = chart.crs_info
-        _check_chart_order(chart, origin_ll, "origin_latlon")
+        if src == "file":       # a user's file may be in [lat, lon] order; the built-in charts are not
+            _check_chart_order(chart, origin_ll, "origin_latlon")
         e, n = lonlat_to_utm(origin_ll[1], origin_ll[0], chart.zone, south=info_crs.south, datum=info_crs.datum)
         chart = chart.with_origin((float(e), float(n)))
         _check_chart_near_origin(chart, "origin_latlon")
