@@ -367,4 +367,4 @@ else:
 
 
 __all__ = ["PlannerConfig", "Params", "validate_params", "params_as_arrays", "ESTIMATORS", "DTYPES",
-           "MAX_HORIZON_STEPS", "POSITIVE_FIELDS", "NON_NEGATIVE_FIELDS", "UNIT_INTERVAL_FIELDS"]
+           "MAX_HORIZON_STEPS"]
