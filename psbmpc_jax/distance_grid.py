@@ -136,7 +136,14 @@ def polygons_key(polygons, spacing, margin, region=None) -> str:
 def interpolate(grid: DistanceGrid, px, py):
     """Bilinear interpolation of the grid at points ``px, py`` (any shape); ``margin`` outside the grid.
 
-    Returns (d, gx, gy): the distance and its (bilinear) gradient, whose negative points towards land."""
+    Returns (d, gx, gy): the distance and its (bilinear) gradient, whose negative points towards land.
+
+    Derivatives: a point exactly on a grid line belongs to the cell on its + side (the cell ``floor``
+    picks), so there the derivative (automatic, and ``gx, gy``) is the one-sided derivative from the +
+    side, the derivative of that cell's bilinear patch — the whole derivative, not half of it (the
+    interpolant is continuous, and where it is smooth across the line, e.g. a straight coast, this is
+    the derivative).  On the last grid line (the + edge of the grid) it is the derivative from the −
+    side; beyond it the distance is the constant ``margin``."""
     h = grid.spacing
     nx, ny = grid.values.shape
     fx = (px - grid.origin[0]) / h
@@ -144,8 +151,11 @@ def interpolate(grid: DistanceGrid, px, py):
     inside = (fx >= 0) & (fx <= nx - 1) & (fy >= 0) & (fy <= ny - 1)
     i = jnp.clip(jnp.floor(fx), 0, nx - 2).astype(jnp.int32)
     j = jnp.clip(jnp.floor(fy), 0, ny - 2).astype(jnp.int32)
-    a = jnp.clip(fx - i, 0.0, 1.0)
-    b = jnp.clip(fy - j, 0.0, 1.0)
+    # no clip on the weights: inside the grid 0 <= fx - i <= 1 already (fx - floor(fx) is exact), and a
+    # clip would give the derivative a factor 1/2 at its bounds, i.e. exactly on every grid line
+    # (jnp.clip's tie rule).  Outside the grid the weights are out of [0, 1], but the result is masked.
+    a = fx - i
+    b = fy - j
     v = grid.values
     v00, v10, v01, v11 = v[i, j], v[i + 1, j], v[i, j + 1], v[i + 1, j + 1]
     d = (1 - a) * (1 - b) * v00 + a * (1 - b) * v10 + (1 - a) * b * v01 + a * b * v11

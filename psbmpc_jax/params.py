@@ -296,6 +296,8 @@ _NON_NEGATIVE = ("os_R_a", "ob_R_a", "r_ct", "sigma_x", "sigma_y", "d_safe", "K_
                  "G1", "G2", "G3", "G4", "V_w", "K_u", "K_du", "K_chi_stbd", "K_chi_port", "K_dchi_stbd",
                  "K_dchi_port")
 _UNIT_INTERVAL = ("ce_rho", "ce_alpha")
+#: The same groups, public (the device-side check of :func:`psbmpc_jax.solve.inputs_valid` uses them).
+POSITIVE_FIELDS, NON_NEGATIVE_FIELDS, UNIT_INTERVAL_FIELDS = _POSITIVE, _NON_NEGATIVE, _UNIT_INTERVAL
 
 
 def _param_value(v, name: str) -> float:

@@ -79,6 +79,7 @@ class Planner:
         self._grid_regions: list = []          # (chart+origin key, region, key of _grids)
         self._device_params: tuple | None = None      # (params object, its device arrays)
         self._world: tuple | None = None              # (polygons content key, origin, grid, packed world)
+        self._memory_checked: tuple | None = None     # the padded shapes whose memory estimate passed
         self.origin: np.ndarray | None = None
         self._behaviour_arrays = pack_behaviours(self.behaviours, self.config, capacities)
 
@@ -165,8 +166,26 @@ class Planner:
                       world=self._packed_world(situation), behaviour_arrays=self._behaviour_arrays, origin=origin)
         if self.config.estimator != "quadrature" and key is not None:
             checks.prng_key(key, "key")
+        self._check_memory(inputs)
         samples = standard_normal_table(key, self.config, np.dtype(self.config.dtype))
         return inputs, state, p, samples
+
+    def _check_memory(self, inputs: SolveInputs) -> None:
+        """Refuse a solve whose estimated memory exceeds the limit (:func:`psbmpc_jax.limits.check_solve`), before
+        the samples are drawn or anything is compiled; checked once per padded shape."""
+        from . import limits
+
+        n_b = int(inputs.behaviours.offsets.shape[0])
+        n_os = int(np.prod(np.shape(inputs.obstacles.probs)))
+        land = bool(np.shape(inputs.world.polygons.mask)[0]) or bool(np.asarray(inputs.world.grid.active))
+        n_mc = max([int(getattr(t, "n_mc", 0) or 0) for t in self.terms] + [0])
+        key = (n_b, n_os, land, n_mc)
+        if key == self._memory_checked:
+            return
+        platform = None if self.config.layout_platform == "auto" else self.config.layout_platform
+        limits.check_solve(self.config, n_b, n_os, land, n_mc=n_mc, platform=platform,
+                           settings={"n_mc": "the Psbmpc2020Term's n_mc"})
+        self._memory_checked = key
 
     def plan(self, situation: Situation, state: PlannerState | None = None, *, refine=None, key=None,
              params: Params | None = None) -> tuple[PlanResult, PlannerState]:

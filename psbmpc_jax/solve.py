@@ -26,7 +26,9 @@ from .params import Params, PlannerConfig
 #: ``Plan.status`` values.
 STATUS_OK = 0
 STATUS_NO_FINITE_BEHAVIOUR = 1      # every behaviour's total is inf or NaN: the plan is meaningless
-STATUS_NAMES = {STATUS_OK: "ok", STATUS_NO_FINITE_BEHAVIOUR: "no finite behaviour"}
+STATUS_INVALID_INPUT = 2            # a non-finite input or a parameter out of its range (:func:`inputs_valid`)
+STATUS_NAMES = {STATUS_OK: "ok", STATUS_NO_FINITE_BEHAVIOUR: "no finite behaviour",
+                STATUS_INVALID_INPUT: "invalid input (non-finite value or parameter out of range)"}
 
 
 @dataclass(frozen=True)
@@ -71,7 +73,9 @@ jax.tree_util.register_pytree_node(PlannerState, _state_leaves, _state_from_leav
 
 class Plan(NamedTuple):
     """The decision of one solve: ``best`` index, its ``offsets [n_M, 2]``, its ``total`` and ``costs``
-    (term name -> scalar), and ``status`` (:data:`STATUS_OK` or :data:`STATUS_NO_FINITE_BEHAVIOUR`)."""
+    (term name -> scalar), and ``status`` (:data:`STATUS_OK`, :data:`STATUS_NO_FINITE_BEHAVIOUR` or, from
+    :func:`solve`, :data:`STATUS_INVALID_INPUT`: a non-finite input or a parameter out of range,
+    :func:`inputs_valid`; the next state then keeps the previous offsets)."""
 
     best: jax.Array
     offsets: jax.Array
@@ -221,6 +225,62 @@ def select(ev: Evaluation, state: PlannerState, inputs: SolveInputs | None = Non
     return plan, nxt
 
 
+def _finite_where(a, valid):
+    """All of ``a`` finite where ``valid`` (broadcast over ``a``'s trailing axes)."""
+    a = jnp.asarray(a)
+    v = jnp.asarray(valid).reshape(jnp.shape(valid) + (1,) * (a.ndim - jnp.ndim(valid)))
+    return jnp.all(jnp.where(v, jnp.isfinite(a), True))
+
+
+def params_valid(params: Params):
+    """Device-side (traceable, no host sync) form of :func:`psbmpc_jax.params.validate_params`'s value checks:
+    every leaf finite (``t_ts``: > 0 or NaN), the positive / non-negative / unit-interval groups in range,
+    ``|wind_dir| <= 2 pi`` and a PSD OU diffusion.  A scalar bool."""
+    from .params import NON_NEGATIVE_FIELDS, POSITIVE_FIELDS, UNIT_INTERVAL_FIELDS
+
+    ok = jnp.asarray(True)
+    for name in Params.__dataclass_fields__:
+        v = jnp.asarray(getattr(params, name))
+        if name == "t_ts":
+            ok &= jnp.all(jnp.isnan(v) | (jnp.isfinite(v) & (v > 0)))
+            continue
+        ok &= jnp.all(jnp.isfinite(v))
+        if name in POSITIVE_FIELDS:
+            ok &= jnp.all(v > 0)
+        elif name in NON_NEGATIVE_FIELDS:
+            ok &= jnp.all(v >= 0)
+        elif name in UNIT_INTERVAL_FIELDS:
+            ok &= jnp.all((v > 0) & (v <= 1))
+    ok &= jnp.all(jnp.abs(jnp.asarray(params.wind_dir)) <= 2 * np.pi)
+    sx2, sy2 = jnp.asarray(params.sigma_x) ** 2, jnp.asarray(params.sigma_y) ** 2
+    return ok & jnp.all(jnp.asarray(params.sigma_xy) ** 2 <= sx2 * sy2 * (1 + 1e-6))
+
+
+def inputs_valid(inputs: SolveInputs, last_offsets, params: Params, samples, behaviours: bool = True):
+    """A scalar bool, computed on the device (traceable; no host sync): every real (unmasked) input finite —
+    own-ship state, route, U_d and length; obstacle states, covariances, probabilities, weights; polygon
+    vertices; the behaviour offsets (``behaviours``); ``last_offsets``; the sample table — and the parameters
+    in range (:func:`params_valid`).  :func:`solve` reports :data:`STATUS_INVALID_INPUT` when it is False; the
+    host-side checks (:class:`~psbmpc_jax.situation.Situation`, :func:`~psbmpc_jax.params.validate_params`)
+    refuse the same inputs with a message."""
+    own, obs = inputs.own, inputs.obstacles
+    w_slots = jnp.arange(own.wx.shape[-1]) < jnp.reshape(own.n, (-1, 1))
+    ok = (jnp.all(jnp.isfinite(own.state)) & _finite_where(own.wx, w_slots) & _finite_where(own.wy, w_slots)
+          & jnp.all(jnp.isfinite(own.U_d)) & jnp.all(jnp.isfinite(own.length)))
+    m = obs.mask
+    ok &= (_finite_where(obs.state, m) & _finite_where(obs.cov, m) & _finite_where(obs.probs, m)
+           & _finite_where(obs.weight, m) & _finite_where(obs.zeta, m) & _finite_where(obs.length, m))
+    chart = inputs.world.polygons
+    v_slots = (jnp.arange(chart.vertices.shape[1]) < chart.n[:, None]) & chart.mask[:, None]
+    ok &= _finite_where(chart.vertices, v_slots)
+    if behaviours:
+        ok &= _finite_where(inputs.behaviours.offsets, inputs.behaviours.mask)
+    ok &= jnp.all(jnp.isfinite(jnp.asarray(last_offsets)))
+    if samples is not None:
+        ok &= jnp.all(jnp.isfinite(samples))
+    return ok & params_valid(params)
+
+
 def solve_arrays(inputs: SolveInputs, state: PlannerState, params: Params, samples, config: PlannerConfig,
                  terms=DEFAULT_TERMS) -> tuple[Plan, PlannerState, Evaluation]:
     """Un-jitted solve step (vmap it, or jit it through :func:`solve`).  The evaluation returned carries the
@@ -228,6 +288,12 @@ def solve_arrays(inputs: SolveInputs, state: PlannerState, params: Params, sampl
     inputs = jax.tree.map(jnp.asarray, inputs)
     ev = evaluate_arrays(inputs, state.last_offsets, params, samples, config, terms)
     plan, nxt = select(ev, state, inputs, params, config)
+    # a non-finite input or a parameter out of range: status STATUS_INVALID_INPUT and the previous offsets
+    # kept (computed on the device: no host sync in the hot path)
+    ok = inputs_valid(inputs, state.last_offsets, params, samples)
+    plan = plan._replace(status=jnp.where(ok, plan.status, STATUS_INVALID_INPUT).astype(jnp.int32))
+    last = jnp.asarray(state.last_offsets, nxt.last_offsets.dtype)
+    nxt = _state_from_leaves(None, (jnp.where(ok, nxt.last_offsets, last), nxt.warm_start))
     return plan, nxt, ev._replace(best=plan.best, best_offsets=plan.offsets)
 
 
@@ -240,4 +306,5 @@ def solve(inputs: SolveInputs, state: PlannerState, params: Params, samples, con
 
 
 __all__ = ["PlannerState", "Plan", "select", "selection_cost", "break_ties", "signed_distance", "solve",
-           "solve_arrays", "STATUS_OK", "STATUS_NO_FINITE_BEHAVIOUR", "STATUS_NAMES", "TIE_EPS", "SATURATION_EPS"]
+           "solve_arrays", "inputs_valid", "params_valid", "STATUS_OK", "STATUS_NO_FINITE_BEHAVIOUR",
+           "STATUS_INVALID_INPUT", "STATUS_NAMES", "TIE_EPS", "SATURATION_EPS"]

@@ -151,9 +151,9 @@ ERRORS = [
     ("sensor_default_period", lambda d: d["simulation"].update(dt_s=1.0),
      r"sensor.period_s \(not given: the default\) \(2.5\) must be a multiple of simulation.dt_s \(1\)"),
     # MPC
-    ("n_ps_even", _set(lambda d: d["mpc"], "n_ps", 4), r"mpc.n_ps must be an odd integer >= 1, got 4"),
-    ("n_ps_zero", _set(lambda d: d["mpc"], "n_ps", 0), r"mpc.n_ps must be an odd integer >= 1"),
-    ("n_ps_float", _set(lambda d: d["mpc"], "n_ps", 5.0), r"mpc.n_ps must be an odd integer >= 1, got 5.0"),
+    ("n_ps_even", _set(lambda d: d["mpc"], "n_ps", 4), r"mpc.n_ps must be an odd integer from 1 to 99, got 4"),
+    ("n_ps_zero", _set(lambda d: d["mpc"], "n_ps", 0), r"mpc.n_ps must be an odd integer from 1 to 99"),
+    ("n_ps_float", _set(lambda d: d["mpc"], "n_ps", 5.0), r"mpc.n_ps must be an odd integer from 1 to 99, got 5.0"),
     ("n_ps_bool", _set(lambda d: d["mpc"], "n_ps", True), r"mpc.n_ps must be an odd integer"),
     ("preset_unknown", _set(lambda d: d["mpc"], "preset", "river"),
      r"mpc.preset must be one of \['akdag2022', 'nidelva', 'open_sea', 'sakshaug', 'tengesdal2020'\], got 'river'"),

@@ -197,7 +197,8 @@ def test_ship_limits(mutate, match):
      r"monte_carlo.runs \(10000\) x 172801 steps .* x 2 ships need about 360.5 GiB of simulator memory; at most 2 GiB"),
     (lambda d: d.update(targets=[dict(d["targets"][0], name=f"T{k}", position_m=[300 + 10 * k, 0])
                                  for k in range(100)]), r"targets: 100 target ships; at most 99 allowed"),
-    (lambda d: d["mpc"].update(n_ps=10 ** 12 + 1), r"mpc.n_ps must be an odd integer <= 101"),
+    (lambda d: d["mpc"].update(n_ps=10 ** 12 + 1),
+     r"mpc.n_ps must be an odd integer from 1 to 99, got 1000000000001"),
     (lambda d: d["mpc"].update(speed_factors=[[1, 0.5]] * 5, course_offsets_deg=[list(range(-50, 51, 5))] * 5),
      r"make 130691232 control behaviours .* at most 100000 allowed"),
     (lambda d: d["mpc"].update(config={"n_samples": 10 ** 12}), r"PlannerConfig.n_samples must be an integer in"),

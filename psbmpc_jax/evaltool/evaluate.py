@@ -7,7 +7,8 @@ from .geometry import GIVE_WAY, pair_geometry, stages
 from .maneuvers import detect_maneuvers
 from .params import EvalParams, get_params
 from .results import Evaluation
-from .tracks import Tracks, own_index, load_runs
+from ..limits import check_evaluation
+from .tracks import Tracks, check_units, own_index, load_runs
 
 __all__ = ["evaluate_tracks", "evaluate_file", "PAIR_MODES"]
 
@@ -38,12 +39,20 @@ def evaluate_tracks(tracks: Tracks, params: EvalParams | str | None = "default",
         :class:`Evaluation` with one :class:`Encounter` per entry of a pair into the stage-2 range.
 
     Raises:
-        ValueError: invalid parameters, own-ship, pair mode, or tracks shorter than one sample interval.
+        ValueError: invalid parameters, own-ship, pair mode, tracks shorter than one sample interval, or tracks
+            whose units are implausible (:func:`psbmpc_jax.evaltool.tracks.check_units`: speeds above 100 m/s,
+            latitude/longitude in degrees read as metres).
+        psbmpc_jax.limits.ResourceError: the resampled tracks would need more memory than the limit
+            (:func:`psbmpc_jax.limits.check_evaluation`), checked before anything is allocated.
     """
     p = get_params(params, **overrides)
     if pairs not in PAIR_MODES:
         raise ValueError(f"pairs must be one of {PAIR_MODES}, got {pairs!r}")
     own_i = tracks.own if own is None else own_index(own, tracks.names)
+    check_units(tracks)
+    # the memory of the resampled tracks and of every pair's geometry, before any of it is allocated
+    check_evaluation(float(tracks.t[-1] - tracks.t[0]), p.sample_interval_s, tracks.n_vessels, pairs,
+                     setting=f"evaluation of {tracks.source or 'tracks'}: sample_interval_s")
     tr = tracks.resample(p.sample_interval_s)
     dt = p.sample_interval_s
     man = [detect_maneuvers(tr.course[v], tr.speed[v], dt, p) for v in range(tr.n_vessels)]

@@ -24,6 +24,7 @@ Two file kinds are read by :func:`load_tracks` / :func:`load_runs`:
 from __future__ import annotations
 
 import csv
+import io
 import math
 import pathlib
 from dataclasses import dataclass
@@ -33,12 +34,18 @@ import numpy as np
 from ..numerics import wrap_angle_host
 
 __all__ = ["Tracks", "load_tracks", "load_runs", "tracks_from_simulation", "USER_COLUMNS", "OPTIONAL_COLUMNS", "derive_course_speed",
-           "unwrap_interp"]
+           "unwrap_interp", "check_units", "MAX_POSITION_M", "MAX_TRACK_SPEED_MPS"]
 
 #: Required columns of the user CSV format.
 USER_COLUMNS = ("t_s", "vessel", "north_m", "east_m")
 #: Optional columns of the user CSV format (both or neither).
 OPTIONAL_COLUMNS = ("course_deg", "speed_mps")
+#: Largest |north|, |east| [m] of a track: the Earth's circumference (no position on Earth is farther from any
+#: local origin; a larger value is a unit error or a corrupt file).
+MAX_POSITION_M = 4.0e7
+#: Largest speed [m/s] of a track, given or derived from the positions (194 kn: above any vessel, with room for
+#: position noise; a larger value is a unit error, e.g. km/h or mm/s, or a position jump).
+MAX_TRACK_SPEED_MPS = 100.0
 
 
 @dataclass(frozen=True, eq=False)          # holds arrays: compare fields explicitly
@@ -175,6 +182,14 @@ def _validate_tracks(tr: Tracks) -> None:
     if np.any(tr.speed < 0):
         v, k = (int(x) for x in np.argwhere(tr.speed < 0)[0])
         raise ValueError(f"speed: negative value for vessel {v} at sample {k}")
+    for name in ("north", "east"):
+        a = getattr(tr, name)
+        if np.any(np.abs(a) > MAX_POSITION_M):
+            v, k = (int(x) for x in np.argwhere(np.abs(a) > MAX_POSITION_M)[0])
+            raise ValueError(f"{name}: {a[v, k]:g} m for vessel {v} at sample {k} (t = {tr.t[k]:g} s) is not a "
+                             f"position on Earth (|{name}| <= {MAX_POSITION_M:g} m, the Earth's circumference, "
+                             f"allowed); a unit error or a corrupt file?")
+    _check_speeds(tr.speed, tr.t, "speed")
     if len(tr.names) != tr.north.shape[0]:
         raise ValueError(f"{len(tr.names)} names for {tr.north.shape[0]} vessels")
     if len(set(tr.names)) != len(tr.names):
@@ -183,6 +198,45 @@ def _validate_tracks(tr: Tracks) -> None:
         raise ValueError("no vessels")
     if not (isinstance(tr.own, (int, np.integer)) and 0 <= tr.own < tr.north.shape[0]):
         raise ValueError(f"own must be a vessel index in [0, {tr.north.shape[0] - 1}], got {tr.own!r}")
+
+
+def _check_speeds(speed: np.ndarray, t: np.ndarray, name: str, how: str = "") -> None:
+    """Refuse a speed above :data:`MAX_TRACK_SPEED_MPS` (``how``: e.g. "derived from the positions")."""
+    bad = speed > MAX_TRACK_SPEED_MPS
+    if np.any(bad):
+        v, k = (int(x) for x in np.argwhere(bad)[0])
+        raise ValueError(f"{name}: {speed[v, k]:g} m/s{f' ({how})' if how else ''} for vessel {v} at sample {k} (t = {t[k]:g} s) is not "
+                         f"a plausible ship speed (at most {MAX_TRACK_SPEED_MPS:g} m/s allowed); positions or speeds "
+                         f"in other units (km/h, knots, mm), or a position jump?")
+
+
+def check_units(tr: "Tracks") -> None:
+    """Units plausibility of tracks about to be scored (``ValueError`` naming the field):
+
+    * the speeds implied by the positions are at most :data:`MAX_TRACK_SPEED_MPS`;
+    * positions in degrees: when every position lies within ±90 (north) / ±180 (east) and no vessel moves faster
+      than 0.05 m/s by its positions although some vessel moves (given speeds above 0.5 m/s, or a displacement),
+      the positions are latitudes / longitudes read as metres — refused, with the conversion to use."""
+    try:
+        _check_units(tr)
+    except ValueError as exc:
+        raise ValueError(f"{tr.source}: {exc}" if tr.source else str(exc)) from None
+
+
+def _check_units(tr: "Tracks") -> None:
+    dt = np.diff(tr.t)
+    step = np.hypot(np.diff(tr.north, axis=1), np.diff(tr.east, axis=1)) / dt              # [V, n - 1] m/s
+    _check_speeds(np.concatenate([step, step[:, -1:]], axis=1), tr.t, "north/east", "derived from the positions")
+    in_deg = np.all(np.abs(tr.north) <= 90.0) and np.all(np.abs(tr.east) <= 180.0)
+    moved = np.any(step > 0)
+    if in_deg and moved and step.max() < 0.05:
+        given = float(tr.speed.max())
+        why = (f"the given speeds reach {given:g} m/s while the positions move at most {step.max():.3g} m/s"
+               if given > 0.5 else f"no vessel moves faster than {step.max():.3g} m/s")
+        raise ValueError(
+            f"north/east look like latitude/longitude in degrees, not metres: every position is within +-90 / +-180 "
+            f"and {why}. Convert them to a local north/east frame in metres first (e.g. "
+            f"psbmpc_jax.geo.latlon_to_ned(lat, lon, origin_lat, origin_lon))")
 
 
 def own_index(own, names) -> int:
@@ -230,9 +284,9 @@ def load_tracks(path, own=None, run: int = 0) -> Tracks:
 
 
 def _is_sim_csv(p: pathlib.Path) -> bool:
-    with open(p, newline="", encoding="utf-8") as fh:
+    with open(p, "rb") as fh:                   # bytes: a file that is not UTF-8 is reported by the reader
         first = fh.readline()
-    return first.startswith("run,ship,ship_name,")
+    return first.lstrip(b"\xef\xbb\xbf").startswith(b"run,ship,ship_name,")
 
 
 def _load_sim(p: pathlib.Path, own) -> list[Tracks]:
@@ -281,9 +335,15 @@ def _load_user_csv(p: pathlib.Path, own) -> Tracks:
 
 def _read_csv(p: pathlib.Path) -> tuple[list[str], list[tuple[int, list[str]]]]:
     """Header and ``(line number, cells)`` of the data rows; blank lines and ``#`` comments skipped."""
-    with open(p, newline="", encoding="utf-8") as fh:
-        lines = [(i, row) for i, row in enumerate(csv.reader(fh), start=1)
-                 if row and any(c.strip() for c in row) and not row[0].lstrip().startswith("#")]
+    raw = p.read_bytes()
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = raw.count(b"\n", 0, exc.start) + 1
+        raise ValueError(f"{p}: a track file must be UTF-8 text; byte {exc.start} (line {line}) is "
+                         f"0x{raw[exc.start]:02x}, which is not UTF-8 ({exc.reason})") from None
+    lines = [(i, row) for i, row in enumerate(csv.reader(io.StringIO(text, newline="")), start=1)
+             if row and any(c.strip() for c in row) and not row[0].lstrip().startswith("#")]
     if not lines:
         raise ValueError(f"{p}: empty file; expected the header {','.join(USER_COLUMNS)}")
     header = [h.strip() for h in lines[0][1]]

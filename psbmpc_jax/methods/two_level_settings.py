@@ -92,8 +92,8 @@ def parse_two_level(d) -> TwoLevelSpec:
         raise ValueError(f"{w}.sbmpc_T_s and {w}.sbmpc_dt_s must be given together")
     if "sbmpc_T" in kw:
         multiple_of(kw["sbmpc_T"], kw["sbmpc_dt"], f"{w}.sbmpc_T_s", f"{w}.sbmpc_dt_s")
-    if "U_max_mps" in kw and kw["U_max"] > MAX_SPEED_MPS:
-        raise ValueError(f"{w}.U_max_mps must be <= {MAX_SPEED_MPS} m/s, got {kw['U_max']}")
+    if "U_max" in kw and kw["U_max"] > MAX_SPEED_MPS:          # kw holds the field's name, U_max
+        raise ValueError(f"{w}.U_max_mps must be in (0, {MAX_SPEED_MPS:g}] m/s, got {kw['U_max']:g}")
     if "r_os_m" in d:
         kw["r_os"] = as_number(d["r_os_m"], f"{w}.r_os_m", ge=0)
     if "chi_span_deg" in d:

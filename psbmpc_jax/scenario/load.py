@@ -9,6 +9,7 @@ import numpy as np
 import shapely
 import shapely.validation
 from shapely.geometry import Polygon
+from .. import limits as resources
 from .. import scenario_checks as limits
 from ..charts import count_vertices, to_ring_sets
 from ..checks import integer, multiple_of
@@ -125,6 +126,11 @@ def scenario_from_dict(data: dict, base_dir=None, source: str | None = None, *, 
                          f"{limits.MAX_SIM_MEMORY_BYTES / 1024 ** 3:.0f} GiB allowed -- fewer runs, a shorter "
                          f"duration_s or a larger dt_s")
 
+    # scoring every run after the simulation: checked now, not after the simulation has run
+    resources.check_evaluation(duration, evaluation.sample_interval_s, len(tl) + 1, "own",
+                               setting="evaluation.sample_interval_s",
+                               hint="Use a larger evaluation.sample_interval_s (default 1 s)")
+
     ctx = dict(chart=chart, duration=duration, params=mpc.params, origin_latlon=origin_ll, method=mpc.method)
     own = read_ship(data["own_ship"], "own_ship", own=True, ctx=ctx)
     targets = tuple(read_ship(t, f"targets[{i}]", own=False, ctx=ctx) for i, t in enumerate(tl))
@@ -192,9 +198,30 @@ def scenario_from_dict(data: dict, base_dir=None, source: str | None = None, *, 
     rings = tuple(tuple(np.asarray(r, dtype=float) for r in rs) for rs in to_ring_sets(polys)) if polys else ()
     info.update(rdp_eps_m=rdp_eps, clip_m=clip, n_polygons=len(rings),
                 n_vertices=int(sum(len(r) for rs in rings for r in rs)))
+    _check_solve_memory(mpc, len(targets), bool(rings))
     return Scenario(name=name, description=description, own_ship=own, targets=targets, sensor=sensor, mpc=mpc,
                     polygons=rings, chart_info=info, dt=dt, duration=duration, runs=runs, seed=seed,
                     collision_distance=coll, source=source, evaluation=evaluation)
+
+
+#: The methods whose solve is the grid search (:func:`psbmpc_jax.solve.solve`), with their scenarios per obstacle
+#: (None: ``mpc.n_ps``); their memory is estimated at load (:func:`psbmpc_jax.limits.check_solve`).  The
+#: smooth and two-level planners are not estimated.
+GRID_SEARCH_N_PS = {"psbmpc": None, "psbmpc_refine": None, "sbmpc": 1, "psbmpc_2020": 1, "informed_sbmpc": 1}
+
+
+def _check_solve_memory(mpc, n_targets: int, land: bool) -> None:
+    """Refuse a grid-search configuration whose solve cannot fit in memory (one solve: the CPU's loop batch mode;
+    the vmap batch mode holds one per run and ship at once), before anything is compiled."""
+    if mpc.method not in GRID_SEARCH_N_PS:
+        return
+    n_ps = GRID_SEARCH_N_PS[mpc.method] or mpc.n_ps
+    n_b, n_os = resources.padded_sizes(len(mpc.behaviours), n_targets, n_ps)   # no JAX import while loading
+    sb = mpc.sections.get("sbmpc")
+    n_mc = int(getattr(sb, "n_mc", 0)) if mpc.method == "psbmpc_2020" else 0
+    resources.check_solve(mpc.config, n_b, n_os, land, n_mc=n_mc,
+                          settings={"horizon": "mpc.config.T (with dt_s and the behaviours)",
+                                    "estimator": "mpc.config.n_samples", "n_mc": "mpc.sbmpc.n_mc"})
 
 
 def estimator_key(scenario: Scenario, seed: int | None = None):
@@ -222,6 +249,19 @@ def _builtin_path(name: str) -> pathlib.Path:
             return p
     raise ValueError(f"unknown built-in scenario {name!r}; built-in scenarios: {', '.join(builtin_scenarios())} "
                      f"(or give the path of a .yaml / .yml file)")
+
+
+def read_utf8(path, what: str) -> str:
+    """The text of ``path``, UTF-8 (a byte-order mark is skipped); a file in another encoding raises ValueError
+    naming the file, the encoding expected and where the first byte that is not UTF-8 is (byte offset, line)."""
+    raw = pathlib.Path(path).read_bytes()
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = raw.count(b"\n", 0, exc.start) + 1
+        raise ValueError(
+            f"{path}: a {what} must be UTF-8 text; byte {exc.start} (line {line}) is 0x{raw[exc.start]:02x}, which "
+            f"is not UTF-8 ({exc.reason}). Save the file as UTF-8 (e.g. iconv -f latin1 -t utf-8)") from None
 
 
 def load_scenario(path_or_name, *, land_checks: str = "error", method: str | None = None) -> Scenario:
@@ -255,7 +295,7 @@ def load_scenario(path_or_name, *, land_checks: str = "error", method: str | Non
     else:
         path = _builtin_path(s)
     where = str(path)
-    data = yaml_load(path.read_text(encoding="utf-8"), where)
+    data = yaml_load(read_utf8(path, "scenario file"), where)
     if not isinstance(data, dict):
         raise ValueError(f"{where}: a scenario file must hold a mapping at the top level, got "
                          f"{type(data).__name__}")

@@ -32,6 +32,10 @@ def method_name(value, where: str, *, none_ok: bool = False) -> str:
     return value
 
 
+#: Most prediction scenarios per obstacle a scenario file may ask for (``mpc.n_ps``, documented 1 to 99; the
+#: library's own bound, :data:`psbmpc_jax.situation.MAX_N_PS`, is not lower).
+MPC_MAX_N_PS = min(99, MAX_N_PS)
+
 #: The keys of ``mpc`` besides the methods' own sections (:data:`psbmpc_jax.methods.registry.SECTIONS`).
 _MPC_KEYS = ("preset", "update_period_s", "n_ps", "config", "params", "speed_factors", "course_offsets_deg",
              "method")
@@ -63,10 +67,9 @@ def read_mpc(d, dt: float) -> MPCSpec:
     ctx = SectionContext(mpc=d, method=method, period=period)
     _sections(d, ctx, after_config=False)
     n_ps = d.get("n_ps", PRESETS[preset].n_ps)
-    if isinstance(n_ps, bool) or not isinstance(n_ps, numbers.Integral) or n_ps < 1 or n_ps % 2 == 0:
-        raise ValueError(f"mpc.n_ps must be an odd integer >= 1, got {n_ps!r}"[:300])
-    if n_ps > MAX_N_PS:
-        raise ValueError(f"mpc.n_ps must be an odd integer <= {MAX_N_PS}, got {show(n_ps)}")
+    if (isinstance(n_ps, bool) or not isinstance(n_ps, numbers.Integral) or n_ps < 1 or n_ps % 2 == 0
+            or n_ps > MPC_MAX_N_PS):
+        raise ValueError(f"mpc.n_ps must be an odd integer from 1 to {MPC_MAX_N_PS}, got {show(n_ps)}")
 
     config = dict(as_mapping(d.get("config", {}) or {}, "mpc.config"))
     params_in = dict(as_mapping(d.get("params", {}) or {}, "mpc.params"))

@@ -158,11 +158,28 @@ def chart_source(d, base_dir, origin_ll=None):
         source = str(p)
     if origin_ll is not None:  # the geographic origin, projected to the chart's UTM zone
         info_crs = chart.crs_info
+        if src == "file":       # a user's file may be in [lat, lon] order; the built-in charts are not
+            _check_chart_order(chart, origin_ll, "origin_latlon")
         e, n = lonlat_to_utm(origin_ll[1], origin_ll[0], chart.zone, south=info_crs.south, datum=info_crs.datum)
         chart = chart.with_origin((float(e), float(n)))
         _check_chart_near_origin(chart, "origin_latlon")
     info = dict(source=source, origin=tuple(chart.origin), crs=chart.crs)
     return chart, None, info, rdp_eps, clip
+
+
+def _check_chart_order(chart, origin_ll, what: str) -> None:
+    """A chart written [lat, lon] (GeoJSON wants [lon, lat]) lies far from the origin as read and near it with
+    the coordinates exchanged: refused with that diagnosis (:mod:`psbmpc_jax.chart_order`)."""
+    from ..chart_order import check_near
+    from ..charts import MAX_ORIGIN_DISTANCE_M, utm_to_lonlat
+
+    if not chart.polygons:
+        return
+    pts = np.concatenate([np.asarray(p.exterior.coords)[:-1] for p in chart.polygons])     # local (north, east)
+    info = chart.crs_info
+    lon, lat = utm_to_lonlat(pts[:, 1] + chart.origin[0], pts[:, 0] + chart.origin[1], chart.zone,
+                             south=info.south, datum=info.datum)
+    check_near(lon, lat, origin_ll[1], origin_ll[0], MAX_ORIGIN_DISTANCE_M, what)
 
 
 def _check_chart_near_origin(chart, what: str) -> None:

@@ -35,7 +35,8 @@ from ..nlp import SolverSettings
 from ..packing import pack_world, snap_origin
 from ..params import PlannerConfig
 from .corridor import buffered_chart, ring_arrays
-from .docp import DOCP_SOLVER, Previous, cast_tree, check_previous, check_step_options, step_traced
+from ..checks import MAX_ANGLE_RAD, MAX_SPEED_MPS
+from .docp import DOCP_SOLVER, LOWER, UPPER, Previous, cast_tree, check_previous, check_step_options, step_traced
 from .init_stage import ShipModel, SmoothSettings, SmoothWeights, init_stage_traced
 
 #: The planner re-chooses its local origin when an own-ship is farther than this from it in north or east [m]
@@ -148,6 +149,54 @@ def _array(value, name: str, shape_ok, shape_text: str) -> np.ndarray:
     return a
 
 
+def _ship_states(a: np.ndarray, name: str) -> None:
+    """Plausible (north, east, course, speed) rows: course in radians (|course| <= 2 pi: a larger value is
+    probably degrees), speed in [0, MAX_SPEED_MPS] m/s (a larger one is probably knots or km/h)."""
+    course, speed = a[..., 2], a[..., 3]
+    bad = np.abs(course) > MAX_ANGLE_RAD
+    if np.any(bad):
+        v = float(course[bad].flat[0])
+        raise ValueError(f"{name}: course (column 2) = {v:g} is not in radians (|course| <= 2 pi allowed); "
+                         f"degrees? np.deg2rad({v:g}) = {np.deg2rad(v):.6g}")
+    bad = (speed < 0) | (speed > MAX_SPEED_MPS)
+    if np.any(bad):
+        raise ValueError(f"{name}: speed (column 3) = {float(speed[bad].flat[0]):g} m/s is not a plausible ship "
+                         f"speed (0 to {MAX_SPEED_MPS:g} m/s allowed); knots or km/h given as m/s?")
+
+
+def _offsets(a: np.ndarray, name: str, tol: float = 1e-6) -> None:
+    """Applied offsets (U_m, χ_m) inside the DOCP's box (the extremes of the behaviour sets)."""
+    lo, hi = np.asarray(LOWER), np.asarray(UPPER)
+    bad = (a < lo - tol) | (a > hi + tol)
+    if np.any(bad):
+        col = int(np.argwhere(bad)[0][-1])
+        v = float(a[..., col][bad[..., col]].flat[0])
+        what = (f"the speed factor U_m must be in [{LOWER[0]:g}, {UPPER[0]:g}]" if col == 0 else
+                "the course offset chi_m must be in [-pi/2, pi/2] rad")
+        raise ValueError(f"{name}: {what} (the DOCP's box), got {v:g}")
+
+
+def _route_legs(route: np.ndarray, name: str = "route") -> None:
+    """No zero-length leg (the LOS guidance divides by the leg's length)."""
+    legs = np.linalg.norm(np.diff(route, axis=0), axis=1)
+    if np.any(legs == 0):
+        k = int(np.argmax(legs == 0))
+        raise ValueError(f"{name}: leg {k} has zero length (waypoints {k} and {k + 1} coincide at "
+                         f"{route[k].tolist()}); remove the repeated waypoint")
+
+
+def _ship_model(model) -> None:
+    """The own-ship model's values: U_d a plausible speed > 0, lookahead and time constants > 0, R_a >= 0."""
+    for name, lo, hi in (("U_d", 0.0, MAX_SPEED_MPS), ("lookahead", 0.0, None), ("T_chi", 0.0, None),
+                         ("T_U", 0.0, None)):
+        v = getattr(model, name)
+        if not (np.ndim(v) == 0 and np.isfinite(v) and v > lo and (hi is None or v <= hi)):
+            rng = f"(0, {hi:g}] m/s" if hi is not None else "> 0"
+            raise ValueError(f"model.{name} must be a finite number {rng}, got {v!r}")
+    if not (np.ndim(model.R_a) == 0 and np.isfinite(model.R_a) and model.R_a >= 0):
+        raise ValueError(f"model.R_a must be a finite number >= 0 m, got {model.R_a!r}")
+
+
 def _segments(value, n_runs: int | None, n_waypoints: int, name: str) -> np.ndarray:
     a = np.asarray(value)
     shape = () if n_runs is None else (n_runs,)
@@ -194,6 +243,7 @@ class SmoothSBMPCPlanner:
             raise ValueError(f"weights must be a SmoothWeights, got {type(self.weights).__name__}")
         if not isinstance(self.model, ShipModel):
             raise ValueError(f"model must be a ShipModel, got {type(self.model).__name__}")
+        _ship_model(self.model)
         check_step_options(self.settings, self.solver, n_starts, batch)
         if not isinstance(init_only, (bool, np.bool_)):
             raise ValueError(f"init_only must be a bool, got {init_only!r}")
@@ -277,13 +327,21 @@ class SmoothSBMPCPlanner:
         (north, east, course, speed; I may be 0), ``last [2]`` the offsets applied last (U_m, χ_m),
         ``segment`` the active route segment, ``previous`` (``previous_start`` only) the previous plan's
         ``controls [N_mpc, 2]`` shifted to begin now (:func:`psbmpc_jax.smooth.docp.shift_controls`) or None.
-        Returns :class:`SmoothPlan` (host arrays, user's frame)."""
+        Returns :class:`SmoothPlan` (host arrays, user's frame).
+
+        Raises ``ValueError`` naming the input for a wrong shape, a non-finite value, a course outside
+        ``|course| <= 2 pi`` (degrees?), a speed outside 0 to 30 m/s, ``last`` outside the DOCP's box
+        (U_m in [0.1, 1], χ_m in [-pi/2, pi/2]) or a zero-length route leg."""
         state0 = _array(state0, "state0", lambda s: s == (4,), "[4] (north, east, course, speed)")
         route = _array(route, "route", lambda s: len(s) == 2 and s[1] == 2 and s[0] >= 2, "[W >= 2, 2] waypoints")
         targets = _array(targets, "targets", lambda s: len(s) == 2 and s[1] == 4, "[I, 4] (north, east, course, "
                          "speed)")
         last = _array(last, "last", lambda s: s == (2,), "[2] (U_m, chi_m)")
         z = _segments(segment, None, route.shape[0], "segment")
+        _ship_states(state0, "state0")
+        _ship_states(targets, "targets")
+        _offsets(last, "last")
+        _route_legs(route)
         prev = self._previous(previous, ())
         origin = self._origin_for(state0[:2])
         land, buf = self.charts(origin)
@@ -305,6 +363,10 @@ class SmoothSBMPCPlanner:
                          f"[R = {R}, I, 4] (north, east, course, speed)")
         last = _array(last, "last", lambda s: s == (R, 2), f"[R = {R}, 2] (U_m, chi_m)")
         z = _segments(segments, R, route.shape[0], "segments")
+        _ship_states(states, "states")
+        _ship_states(targets, "targets")
+        _offsets(last, "last")
+        _route_legs(route)
         prev = self._previous(previous, (R,))
         origin = self._origin_for(states[:, :2])
         land, buf = self.charts(origin)
