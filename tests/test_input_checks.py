@@ -221,7 +221,7 @@ def test_planner_refuses_t_ts_beyond_the_horizon_and_a_bad_key():
     with pytest.raises(ValueError, match="t_ts"):
         Planner(PlannerConfig(T=60.0), params=Params(t_ts=100.0))
     with pytest.raises(ValueError, match="key"):
-        from psbmpc_jax import Obstacle, OwnShip, Situation
+        from psbmpc_jax import OwnShip, Situation
 
         own = OwnShip([0.0, 0.0, 0.0, 2.0], [[0.0, 0.0], [500.0, 0.0]], 2.0)
         Planner(PlannerConfig(estimator="mc")).prepare(Situation(own, ()), key=12345)
