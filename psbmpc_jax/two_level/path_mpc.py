@@ -130,7 +130,7 @@ class PathMpcData(NamedTuple):
 
 class PathMpcResult(NamedTuple):
     """``u [N_p, 2]`` (χ_d, U_d), predicted states ``x [N_p+1, 4]``, the cost, the max constraint violation
-    [m], the solver status (0 converged, 1 max-iter, 2 infeasible, 3 non-finite) and iteration counts."""
+    [m], the solver status (0 ok/converged, 3 max-iter, 4 infeasible, 5 non-finite: :class:`psbmpc_jax.status.Status`) and iteration counts."""
 
     u: jax.Array
     x: jax.Array
