@@ -40,6 +40,9 @@ MAX_SHIP_WIDTH_M = 100.0
 #: 200 km float32 positions still resolve 2 cm, and a larger value is a unit mix-up: lat/lon or UTM given as
 #: local metres).
 MAX_POSITION_M = 200_000.0
+#: Farthest a route waypoint handed to the planner may lie [m]: the scenario bound plus 50 km, since the
+#: closed-loop simulator extends every route past its last waypoint (by 20 km, ``sim.vessel.ROUTE_EXTENSION_M``).
+MAX_WAYPOINT_M = MAX_POSITION_M + 50_000.0
 
 #: Largest magnitude [rad] accepted for a course or direction: 2 pi.  Larger values are almost always degrees
 #: passed where radians belong (``np.deg2rad`` converts them).
@@ -233,14 +236,14 @@ def control_plan(value, name: str, *, n: int, lower, upper, box: str, what: str,
     return a, missing
 
 
-def local_positions(value: np.ndarray, name: str) -> np.ndarray:
+def local_positions(value: np.ndarray, name: str, limit: float = MAX_POSITION_M) -> np.ndarray:
     """``value`` (finite, last axis north/east [m]) unchanged, or an error when a point lies farther than
-    :data:`MAX_POSITION_M` from the local origin."""
+    ``limit`` (:data:`MAX_POSITION_M`; waypoints :data:`MAX_WAYPOINT_M`) from the local origin."""
     pts = np.asarray(value, float).reshape(-1, 2)
     far = np.hypot(pts[:, 0], pts[:, 1])
-    if far.size and far.max() > MAX_POSITION_M:
+    if far.size and far.max() > limit:
         i = int(np.argmax(far))
         raise ValueError(f"{name}: point {pts[i].tolist()} lies {far[i] / 1000:.6g} km from the local origin; at most "
-                         f"{MAX_POSITION_M / 1000:.0f} km allowed -- positions are local metres (north, east), "
+                         f"{limit / 1000:.0f} km allowed -- positions are local metres (north, east), "
                          "not lat/lon or UTM")
     return value

@@ -158,7 +158,8 @@ class OwnShip:
         checks.local_positions(state[:2], "own_ship.state position (x, y)")
         object.__setattr__(self, "state", state)
         object.__setattr__(self, "waypoints", checks.local_positions(
-            checks.waypoints(self.waypoints, "own_ship.waypoints", 2), "own_ship.waypoints"))
+            checks.waypoints(self.waypoints, "own_ship.waypoints", 2), "own_ship.waypoints",
+            checks.MAX_WAYPOINT_M))
         object.__setattr__(self, "U_d", checks.speed(self.U_d, "own_ship.U_d"))
         object.__setattr__(self, "length", checks.hull(self.length, "own_ship.length", checks.MAX_SHIP_LENGTH_M))
         object.__setattr__(self, "width", checks.hull(self.width, "own_ship.width", checks.MAX_SHIP_WIDTH_M))
@@ -222,7 +223,8 @@ class Obstacle:
         object.__setattr__(self, "width", checks.hull(self.width, "obstacle.width", checks.MAX_SHIP_WIDTH_M))
         if self.waypoints is not None:
             object.__setattr__(self, "waypoints", checks.local_positions(
-                checks.waypoints(self.waypoints, "obstacle.waypoints", 2), "obstacle.waypoints"))
+                checks.waypoints(self.waypoints, "obstacle.waypoints", 2), "obstacle.waypoints",
+            checks.MAX_WAYPOINT_M))
         if self.leg_speeds is not None:
             if self.waypoints is None:
                 raise ValueError("obstacle.leg_speeds needs obstacle.waypoints (one speed per leg)")
