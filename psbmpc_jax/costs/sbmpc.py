@@ -6,7 +6,7 @@ clockwise positive):
 
 * :func:`adhoc_risk`: the ad hoc collision risk R, crisp (3) or ungated (17);
 * :func:`sigma_coll`: the distance gate σ_coll (16), falling, slope a₂ = −ln 99 / (w_coll d_safe) (our reading, choice
-  SM-1 of docs/algorithm.md §12: the paper prints neither the sign nor the value);
+  SM-1 of docs/algorithm.md §12: the paper calls the slope tunable and gives neither its sign nor a value);
 * :func:`collision_weight`: C = K_coll ‖v_o − v_i‖² (4)/(18);
 * :func:`collision_hazard`: σ_coll·C·R (smooth) or C·R (crisp) of one (target, time) pair;
 * :func:`colregs_boolean`: the original Boolean COLREGS indicator μ (5)-(10) (crisp);
