@@ -46,7 +46,8 @@ _NUMERIC = ("tol", "rel_tol", "grad_tol", "mu0", "growth", "mu_max", "decrease",
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class SolverSettings:
-    """Settings of :func:`psbmpc_jax.nlp.solve_docp` (defaults = the PROPOSED library solver of SPEC §1.6).
+    """Settings of :func:`psbmpc_jax.nlp.solve_docp` (defaults: our proposal, since Mahipala & Johansen 2024 name no
+    solver; ``docs/solver.md``).
 
     Static (recompile when changed):
         max_outer: augmented-Lagrangian (outer) iterations, >= 1.  Default 20.

@@ -1,4 +1,4 @@
-"""Host API of Smooth-SBMPC (seed 000) for the closed-loop simulator: :class:`SmoothSBMPCPlanner`.
+"""Host API of Smooth-SBMPC (Mahipala & Johansen 2024) for the closed-loop simulator: :class:`SmoothSBMPCPlanner`.
 
 >>> planner = SmoothSBMPCPlanner(polygons)                       # packs the land chart and its buffer once
 >>> plan = planner.plan(state0, route, targets, last, segment=0)  # one ship
