@@ -210,7 +210,17 @@ def test_method_override(tmp_path):
     path = tmp_path / "m.yaml"
     path.write_text(yaml.safe_dump(tiny()))
     assert load_scenario(path).mpc.method == "psbmpc"
+    # methods whose default settings were tuned for another ship (tiny's own-ship: 5 m at 1 m/s) are refused
+    # until the file gives their section (Method.check_fit)
+    own_tuning = {"sbmpc": {"sbmpc": {"preset": "river"}}, "psbmpc_2020": {"sbmpc": {"preset": "river"}},
+                  "informed_sbmpc": {"informed": {"d_init_m": 300}}, "two_level": {"two_level": {"U_max_mps": 1}}}
     for method in METHODS:
+        if method in own_tuning:
+            with pytest.raises(ValueError, match=rf"method {method} on ship 'OS': its default settings \(mpc\.\w+ "
+                                                 r"not in the file\) were tuned for .* fit ships within a factor 3"):
+                load_scenario(path, method=method)
+            assert scenario_from_dict(tiny(**own_tuning[method]), method=method).mpc.method == method
+            continue
         assert load_scenario(path, method=method).mpc.method == method
         assert scenario_from_dict(tiny(), method=method).mpc.method == method
     with pytest.raises(ValueError, match=r"method \(the override of mpc.method\) must be a known method"):
@@ -622,7 +632,11 @@ def test_reconstruction_scenario_loads_and_is_marked():
     data["own_ship"].pop("allow_route_over_land")
     with pytest.raises(ValueError, match=r"route leg 0 .* crosses land for 13.0 m"):
         scenario_from_dict(data, land_checks="error")
-    for method in METHODS:                                # every method runs this file (--method)
+    for method in METHODS:      # every method runs this file (--method) but the one tuned for 116 m ships
+        if method == "informed_sbmpc":
+            with pytest.raises(ValueError, match=r"method informed_sbmpc on ship 'OS': .* length 5 m outside"):
+                load_scenario("smooth_000_reconstruction", method=method)
+            continue
         with pytest.warns(ScenarioWarning):
             assert load_scenario("smooth_000_reconstruction", method=method).mpc.method == method
 

@@ -14,15 +14,15 @@ Importing this package does not import JAX (the scenario loader uses it); the co
 when a method builds one.  Writing your own controller: ``docs/controllers.md``.
 """
 
-from .base import (COST_NAMES, INFO_NAMES, BuildContext, Controller, Decision, Method, Observation, ShipController,
-                   tracked_targets)
+from .base import (COST_NAMES, INFO_NAMES, BuildContext, Controller, Decision, DesignShip, Method, Observation,
+                   ShipController, tracked_targets)
 from .registry import (ENTRY_POINT_GROUP, REGISTRY, Controllers, build_controllers, get_method, is_import_path,
                        names, register, unregister)
 from . import builtin  # noqa: F401  (registers the built-in methods)
 from .sbmpc_family import (INFORMED_MANOEUVRING, MAX_N_MC, SBMPC_FAMILY, SBMPC_PRESETS, SbmpcSettings,
                            informed_terms, manoeuvring_term, psbmpc2020_terms, sbmpc_settings, sbmpc_terms)
 
-__all__ = ["COST_NAMES", "INFO_NAMES", "BuildContext", "Controller", "Decision", "Method", "Observation",
+__all__ = ["COST_NAMES", "INFO_NAMES", "BuildContext", "Controller", "Decision", "DesignShip", "Method", "Observation",
            "ShipController", "tracked_targets", "ENTRY_POINT_GROUP", "REGISTRY", "Controllers", "build_controllers",
            "get_method", "is_import_path", "names", "register", "unregister", "INFORMED_MANOEUVRING", "MAX_N_MC",
            "SBMPC_FAMILY", "SBMPC_PRESETS", "SbmpcSettings", "informed_terms", "manoeuvring_term",

@@ -25,7 +25,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import asdict
 
-from .base import BuildContext, Method
+from .base import BuildContext, DesignShip, Method
 from .informed_settings import InformedSpec, parse_informed
 from .refine_settings import RefineSpec, parse_refine
 from .registry import SectionContext, register, register_section
@@ -106,6 +106,8 @@ class Sbmpc(Method):
 
     name = "sbmpc"
     description = "original SB-MPC (Johansen et al. 2016), straight-line targets"
+    tuning_sections = ("sbmpc",)
+    design_ship = DesignShip(30.0, 9.0, "Tengesdal, Brekke & Johansen 2020, Table 1 (30 m vessels at 9 m/s)")
 
     def terms(self, scenario):
         from .sbmpc_family import sbmpc_terms
@@ -142,6 +144,8 @@ class InformedSbmpc(Method):
 
     name = "informed_sbmpc"
     description = "Informed SB-MPC (Akdağ, Fossen & Johansen 2022): route exchange, Rule 18, shaped d_safe"
+    tuning_sections = ("informed",)
+    design_ship = DesignShip(116.0, 6.0, "Akdağ, Fossen & Johansen 2022 (116 m offshore vessels at about 6 m/s)")
 
     def build(self, scenario, ships, context: BuildContext):
         from .grid import GridController
@@ -168,6 +172,8 @@ class SmoothSbmpc(Method):
     description = "Smooth-SBMPC: initialisation stage + DOCP"
     own_ship_only = True
     diagnostics = True
+    tuning_sections = ("smooth", "fis")
+    design_ship = DesignShip(5.0, 1.0, "Mahipala & Johansen 2024 (a small inland vessel, about 5 m, at about 1 m/s)")
 
     def build(self, scenario, ships, context: BuildContext):
         from .smooth import SmoothController
@@ -200,6 +206,12 @@ class TwoLevel(Method):
     description = "two-level MPC: path-following NMPC + SB-MPC with grounding cost"
     own_ship_only = True
     diagnostics = True
+    tuning_sections = ("two_level",)
+    # the upper level's cost (7) pulls toward the next waypoint, so the ship runs at the speed bound U_max (5 m/s
+    # by default): the defaults fit a cruise speed from 0.8 U_max to U_max; r_os 5 m is a ~10 m hull's circle
+    design_ship = DesignShip(10.0, TwoLevelSpec.U_max, "our fjord-scale proposal (a ~10 m vessel, speed bound "
+                             f"U_max {TwoLevelSpec.U_max:g} m/s)", speed_range=(0.8 * TwoLevelSpec.U_max,
+                                                                                TwoLevelSpec.U_max))
 
     def build(self, scenario, ships, context: BuildContext):
         from .two_level import TwoLevelController

@@ -19,6 +19,7 @@ from .mpc import method_name, read_evaluation, read_mpc
 from .schema import SCENARIO_DIR, Scenario
 from .ships import read_ship
 from .world import chart_source, clip_polygons, read_origin_latlon, read_sensor
+from ..methods.registry import get_method
 
 
 _TOP_KEYS = ("name", "description", "simulation", "monte_carlo", "collision_distance_m", "evaluation", "mpc", "sensor",
@@ -198,6 +199,7 @@ def scenario_from_dict(data: dict, base_dir=None, source: str | None = None, *, 
     rings = tuple(tuple(np.asarray(r, dtype=float) for r in rs) for rs in to_ring_sets(polys)) if polys else ()
     info.update(rdp_eps_m=rdp_eps, clip_m=clip, n_polygons=len(rings),
                 n_vertices=int(sum(len(r) for rs in rings for r in rs)))
+    _check_method_fit(mpc, own, targets)
     _check_solve_memory(mpc, len(targets), bool(rings))
     return Scenario(name=name, description=description, own_ship=own, targets=targets, sensor=sensor, mpc=mpc,
                     polygons=rings, chart_info=info, dt=dt, duration=duration, runs=runs, seed=seed,
@@ -208,6 +210,17 @@ def scenario_from_dict(data: dict, base_dir=None, source: str | None = None, *, 
 #: (None: ``mpc.n_ps``); their memory is estimated at load (:func:`psbmpc_jax.limits.check_solve`).  The
 #: smooth and two-level planners are not estimated.
 GRID_SEARCH_N_PS = {"psbmpc": None, "psbmpc_refine": None, "sbmpc": 1, "psbmpc_2020": 1, "informed_sbmpc": 1}
+
+
+def _check_method_fit(mpc, own, targets) -> None:
+    """Refuse a method whose default settings were tuned for ships of another scale than the ones that run it
+    (:meth:`psbmpc_jax.methods.Method.check_fit`; a file that gives the method's own section is not checked)."""
+    runs: dict = {mpc.method: [own]}
+    for t in targets:
+        if t.colav != "none":
+            runs.setdefault(t.colav, []).append(t)
+    for name, ships in runs.items():
+        get_method(name).check_fit(ships, mpc.given)
 
 
 def _check_solve_memory(mpc, n_targets: int, land: bool) -> None:

@@ -130,6 +130,9 @@ class MPCSpec:
             by the methods it belongs to).  They read as attributes: ``mpc.smooth``, ``mpc.fis``, ``mpc.solver``,
             ``mpc.refine``, ``mpc.sbmpc`` (``sbmpc``, ``psbmpc_2020`` and the lower level of ``two_level``),
             ``mpc.informed``, ``mpc.two_level``.
+        given: the keys of the sections the file gives (the others are defaults; a method whose tuning
+            sections are all defaults is checked against the ship it was tuned for,
+            :meth:`psbmpc_jax.methods.Method.check_fit`).
     """
 
     preset: str
@@ -140,6 +143,7 @@ class MPCSpec:
     period: float = 5.0
     method: str = "psbmpc"
     sections: dict = field(default_factory=dict)
+    given: tuple = ()
 
     def __getattr__(self, name: str):
         """A method's section by its key (the file's, else the section's default)."""

@@ -1,0 +1,74 @@
+"""Method settings carry the ship they were tuned for: every shipped scenario x every built-in method either
+loads with settings that fit its ships or is refused with the reason (Method.check_fit, DesignShip)."""
+
+import warnings
+
+import pytest
+import yaml
+
+from psbmpc_jax.methods import REGISTRY, DesignShip
+from psbmpc_jax.scenario import builtin_scenarios, load_scenario, scenario_from_dict
+from psbmpc_jax.scenario.schema import SCENARIO_DIR
+
+BUILTIN_METHODS = ("psbmpc", "psbmpc_refine", "sbmpc", "psbmpc_2020", "informed_sbmpc", "smooth_sbmpc", "sbmpc_init",
+                   "two_level")
+
+
+def _load(name, method=None):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return load_scenario(name, method=method)
+
+
+@pytest.mark.parametrize("scenario", builtin_scenarios())
+def test_every_scenario_by_every_method_fits_or_is_refused_by_name(scenario):
+    own = _load(scenario)                                 # the file's own method always fits
+    for method in BUILTIN_METHODS:
+        design = REGISTRY[method].design_ship
+        try:
+            sc = _load(scenario, method=method)
+        except ValueError as exc:
+            msg = str(exc)
+            assert design is not None, f"{scenario} x {method}: refused without a design ship: {msg}"
+            assert f"method {method} on ship " in msg and "were tuned for" in msg, msg
+            assert not any(k in own.mpc.given for k in REGISTRY[method].tuning_sections), msg
+            continue
+        # loaded: either the method's tuning is the scenario's (its section given, or no design ship) or the
+        # ships that run it lie inside the design ship's range
+        if design is not None and not any(k in sc.mpc.given for k in REGISTRY[method].tuning_sections):
+            assert design.misfit(sc.own_ship.length, sc.own_ship.U_d) is None, (scenario, method)
+
+
+def test_design_ship_rule_edges():
+    d = DesignShip(30.0, 9.0, "a test ship")
+    assert d.misfit(10.0, 3.0) is None and d.misfit(90.0, 27.0) is None          # the factor 3 is inclusive
+    assert d.misfit(9.99, 9.0) == "length 9.99 m outside 10-90 m"
+    assert d.misfit(30.0, 27.01) == "cruise speed 27.01 m/s outside 3-27 m/s"
+    assert d.misfit(0.0, 9.0) is None                     # a point target has no hull to compare
+    explicit = DesignShip(10.0, 5.0, "bounded", speed_range=(4.0, 5.0))
+    assert explicit.misfit(10.0, 4.0) is None and "outside 4-5 m/s" in explicit.misfit(10.0, 2.0)
+
+
+def test_giving_the_methods_section_is_taking_responsibility_for_the_tuning():
+    data = yaml.safe_load((SCENARIO_DIR / "head_on.yaml").read_text())
+    with pytest.raises(ValueError, match=r"method informed_sbmpc on ship 'OS': its default settings \(mpc.informed "
+                                         r"not in the file\) were tuned for Akdağ, Fossen & Johansen 2022 .* length "
+                                         r"5 m outside 38.7-348 m; cruise speed 2 m/s outside 2-18 m/s|length 5 m"):
+        scenario_from_dict(data, method="informed_sbmpc")
+    data["mpc"]["informed"] = {"d_init_m": 400, "xtd_threshold_m": 20}
+    assert scenario_from_dict(data, method="informed_sbmpc").mpc.method == "informed_sbmpc"
+    # two-level: its speed bound is the ship's speed, so a 2 m/s boat needs its own U_max_mps
+    data = yaml.safe_load((SCENARIO_DIR / "head_on.yaml").read_text())
+    with pytest.raises(ValueError, match=r"method two_level .* cruise speed 2 m/s outside 4-5 m/s"):
+        scenario_from_dict(data, method="two_level")
+    data["mpc"]["two_level"] = {"U_max_mps": 2}
+    assert scenario_from_dict(data, method="two_level").mpc.method == "two_level"
+
+
+def test_a_target_running_a_method_is_checked_too():
+    data = yaml.safe_load((SCENARIO_DIR / "head_on.yaml").read_text())
+    data["targets"][0]["colav"] = "sbmpc"
+    with pytest.raises(ValueError, match=r"method sbmpc on ship 'TS1': .* Tengesdal, Brekke & Johansen 2020"):
+        scenario_from_dict(data)
+    data["mpc"]["sbmpc"] = {"preset": "river"}
+    assert scenario_from_dict(data).targets[0].colav == "sbmpc"
