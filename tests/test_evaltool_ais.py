@@ -77,6 +77,7 @@ def test_round_trip_gives_the_same_encounters(tmp_path, case, sog_cog, unix):
     df.to_csv(p, index=False)
     tr = load_tracks(p, own="257000001")
     assert tr.names == ("257000001", "257000002") and tr.own_name == "257000001"
+    assert all(type(n) is str for n in tr.names)
     assert tr.t0_utc == ("1714644000.000 (Unix seconds)" if unix else "2024-05-02T10:00:00.000Z")
     ev = evaluate_tracks(tr, INLAND)
     assert [(e.situation, e.status) for e in ev.encounters] == [(e.situation, e.status) for e in ref.encounters]

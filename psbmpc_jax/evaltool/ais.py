@@ -146,7 +146,7 @@ def load_ais_csv(p: pathlib.Path, header: list[str], rows: list[tuple[int, list[
         fail(int(empty[0]), "MMSI", "empty vessel identifier")
     t_abs, t0_text = _times(df["timestamp"], fail)
 
-    names = tuple(dict.fromkeys(mmsi))                      # first-appearance order
+    names = tuple(str(n) for n in dict.fromkeys(mmsi))      # first-appearance order
     if isinstance(own, (int, np.integer)) and not isinstance(own, bool) and str(own) in names:
         own = str(own)                                      # an MMSI given as a number
     if own is None and len(names) > 1:
