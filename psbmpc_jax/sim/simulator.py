@@ -155,7 +155,7 @@ class _Progress:
             tqdm = None
         if tqdm is not None:
             self.bar = tqdm(total=self.total, desc=label, unit=unit.split()[-1].rstrip("s") or "it",
-                            file=sys.stderr, dynamic_ncols=True, leave=True, smoothing=0.1)
+                            file=sys.stderr, dynamic_ncols=True, leave=True, smoothing=0.0)  # mean rate: see eta()
             if first_compiles:
                 self.bar.set_postfix_str("first update compiles the solver")
         else:
