@@ -221,3 +221,13 @@ def test_cli_errors(capsys, tmp_path):
     with pytest.raises(SystemExit):
         main(["evaluate", str(EXAMPLE), "--dt", "-1"])
     assert "--dt must be a finite number of seconds > 0" in capsys.readouterr().err
+
+
+def test_evaluate_file_reads_the_example_with_dt():
+    from psbmpc_jax.evaltool import evaluate_file
+    from psbmpc_jax.evaltool.params import scaled_params
+
+    (ev,) = evaluate_file(EXAMPLE, scaled_params("default", 1 / 6), own="257000001", dt=0.5)
+    assert [(e.vessel, e.other, e.situation, e.status) for e in ev.encounters] == [
+        ("257000001", "257000002", "CRGW", "scored")]
+    assert ev.encounters[0].r_cpa == pytest.approx(59.1, abs=0.1)     # the simulated run's CPA (59.06 m)

@@ -154,8 +154,11 @@ class _Progress:
         except ImportError:
             tqdm = None
         if tqdm is not None:
+            # smoothing 0: the mean rate since the (re)start, as eta(); into a log file (no terminal) a line at
+            # most every 10 s instead of ten a second
             self.bar = tqdm(total=self.total, desc=label, unit=unit.split()[-1].rstrip("s") or "it",
-                            file=sys.stderr, dynamic_ncols=True, leave=True, smoothing=0.0)  # mean rate: see eta()
+                            file=sys.stderr, dynamic_ncols=True, leave=True, smoothing=0.0,
+                            mininterval=0.1 if self.tty else 10.0)
             if first_compiles:
                 self.bar.set_postfix_str("first update compiles the solver")
         else:
