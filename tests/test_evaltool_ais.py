@@ -231,3 +231,17 @@ def test_evaluate_file_reads_the_example_with_dt():
     assert [(e.vessel, e.other, e.situation, e.status) for e in ev.encounters] == [
         ("257000001", "257000002", "CRGW", "scored")]
     assert ev.encounters[0].r_cpa == pytest.approx(59.1, abs=0.1)     # the simulated run's CPA (59.06 m)
+
+
+def test_track_across_the_antimeridian(tmp_path):
+    """10 m/s east along 10 N through lon 180: the centroid's longitude is averaged on the circle, so the track is
+    straight and continuous in metres (not 40 000 km long)."""
+    m_per_deg = 111_320 * math.cos(math.radians(10))     # ~ metres per degree of longitude at 10 N
+    lons = [(179.999 + k * 100 / m_per_deg + 180) % 360 - 180 for k in range(5)]
+    assert lons[1] > 0 > lons[2]
+    p = write(tmp_path, "timestamp,MMSI,lat,lon\n" + "".join(f"{10 * k},1,10.0,{lon:.7f}\n"
+                                                              for k, lon in enumerate(lons)))
+    tr = load_tracks(p)
+    assert np.all(np.diff(tr.east[0]) > 0) and tr.east[0, -1] - tr.east[0, 0] == pytest.approx(400, abs=1)
+    assert tr.speed[0] == pytest.approx(10.0, abs=0.01)
+    assert np.degrees(tr.course[0]) == pytest.approx(90.0, abs=0.01)
