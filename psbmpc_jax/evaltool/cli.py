@@ -251,7 +251,7 @@ def run_evaluate(args, parser: argparse.ArgumentParser) -> int:
             tr = runs[0]
             print(f"  AIS reports of {tr.n_vessels} vessels (MMSI {', '.join(tr.names)}) resampled every "
                   f"{tr.t[1] - tr.t[0]:g} s over their common period: t = 0 s is {tr.t0_utc}, t = {tr.t[-1]:g} s "
-                  f"the end; own-ship {tr.own_name}")
+                  f"the end (reports outside it are not scored; -v counts them); own-ship {tr.own_name}")
         for r, ev in enumerate(evs):
             for e in ev.encounters:
                 print(encounter_line(r, e))
