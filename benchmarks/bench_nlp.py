@@ -2,7 +2,7 @@
 
 Two parts, both written to ``benchmarks/results/nlp_<platform>_<UTC timestamp>.json``:
 
-* ``docp``: a problem of the DOCP's size and structure (SPEC §1.6, single shooting): controls
+* ``docp``: a problem of the DOCP's size and structure (eq. 27 of Mahipala & Johansen 2024, single shooting): controls
   u = (χ_m, U_m) ``[N, 2]`` for N in {40, 120}, box −90°..90° × 0.1..1, a first-order course/speed +
   kinematic rollout (``lax.scan``), a smooth NONCONVEX cost (Gaussian bumps of O moving obstacles, O chosen
   so that one evaluation costs ~1e4 flops, + the Γ-like control and smoothness penalties), 4 terminal

@@ -5,10 +5,11 @@ Usage:  python benchmarks/bench_path_mpc.py [--repeats 30] [--out benchmarks/res
 
 Cases (interleaved rounds, every slot timed once per round; float64 as the scenarios run it under x64,
 float32 otherwise):
-* ``fjord``: the seed-001 reconstruction on the Trondheim chart (``mahipala2023_7_combined``: N_p 30, dt 1 s,
-  the river's corridors, two static circles), from the own-ship's start; cold start (the applied command held)
-  and warm start (the previous plan shifted, as in the closed loop);
-* ``smooth000``: the reconstructed seed-000 scene (``smooth_000_reconstruction``: N_p 20);
+* ``fjord``: the reconstruction of Mahipala & Johansen (2023) on the Trondheim chart (``mahipala2023_7_combined``: N_p
+  30, dt 1 s, the river's corridors, two static circles), from the own-ship's start; cold start (the applied command
+  held) and warm start (the previous plan shifted, as in the closed loop);
+* ``smooth000``: the reconstructed Smooth-SBMPC scene (Mahipala & Johansen 2024) (``smooth_000_reconstruction``: N_p
+  20);
 * ``update``: one whole ``TwoLevelPlanner.plan`` (upper level + target prediction + 39-behaviour SB-MPC) of
   each scenario at its start, targets included.
 """

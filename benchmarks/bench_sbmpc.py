@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""Solve time of the SB-MPC family on seed 004's situations (39 behaviours, T 200 s, dt 0.5 s, 401 steps).
+"""Solve time of the SB-MPC family on the situations of Tengesdal, Brekke & Johansen (2020) (39 behaviours, T 200 s,
+dt 0.5 s, 401 steps).
 
     python benchmarks/bench_sbmpc.py [--repeats 30] [--out benchmarks/results]
 

@@ -1,12 +1,13 @@
-"""Single against multiple shooting for the two-level method's upper level (seed 001 prints multiple shooting,
-eqs. 6 and 8; the library solves single shooting, docs/algorithm.md §15): the same cost (7), box (9), circles
-(10) and corridor (11) on the same NLP core, from the same start.
+"""Single against multiple shooting for the two-level method's upper level (Mahipala & Johansen 2023 print multiple
+shooting, eqs. 6 and 8; the library solves single shooting, docs/algorithm.md §15): the same cost (7), box (9),
+circles (10) and corridor (11) on the same NLP core, from the same start.
 
 Usage:  python benchmarks/bench_shooting.py [--repeats 20] [--out benchmarks/results]
 
 Multiple shooting: the unknowns are w = (u_0 … u_{N_p−1}, x_1 … x_{N_p}) with the defects
 x_{k+1} − RK4(x_k, u_k) = 0 as equality constraints of the augmented Lagrangian, the states' box free.  Cases:
-the seed-001 fjord reconstruction (N_p 30) and the seed-000 scene (N_p 20) from their starts (cold) and the
+the fjord reconstruction of the two-level paper (N_p 30) and the Smooth-SBMPC scene (N_p 20) from their starts (cold)
+and the
 fjord case after 20 closed-loop steps.  Records the cost of the result (evaluated by rolling the commands
 out, so both are judged on the same trajectory), the constraint violation, iterations and the solve time
 (interleaved rounds).

@@ -1,6 +1,6 @@
-"""Smooth-SBMPC step benchmark at the paper-000 scale (SmoothSettings defaults: T_init 60 s, T_mpc 20 s, dt 1 s,
-n_y 201; 39 behaviours; 4 point targets; the SPEC_SEEDS §1.9 reconstruction channel: banks, a crossing
-channel, a peninsula across the route and an island, 10 polygons), float32, this device.
+"""Smooth-SBMPC step benchmark at the Smooth-SBMPC paper's scale (SmoothSettings defaults: T_init 60 s, T_mpc 20 s, dt
+1 s, n_y 201; 39 behaviours; 4 point targets; the reconstruction channel of scenarios/smooth_000_reconstruction.yaml:
+banks, a crossing channel, a peninsula across the route and an island, 10 polygons), float32, this device.
 
 Slots (each compiled first, compile time recorded separately, then timed round-robin, one repeat of every
 slot per round, so that a slow spell of this shared machine lands on every slot alike):
@@ -36,7 +36,7 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from _common import environment_meta, stats, write_results  # noqa: E402
 
-CHI0 = math.radians(105.0)          # SPEC §1.9: route frame rotated to the mean course
+CHI0 = math.radians(105.0)          # as in the reconstruction scenario: route frame rotated to the mean course
 
 
 def rot(s, e):
@@ -50,9 +50,9 @@ def box(s0, s1, e0, e1):
 
 
 def channel_polygons():
-    """SPEC §1.9 reconstruction (PROPOSED geometry): banks at |e| = 30..60 m for s in [-50, 80] and [135, 230],
-    a port-side peninsula across the route (s 15..28 m, up to e = +3 m), the crossing channel's sides and an
-    island in it: 10 polygons."""
+    """The reconstruction channel (our proposed geometry, not the paper's): banks at |e| = 30..60 m for s in [-50, 80]
+    and [135, 230], a port-side peninsula across the route (s 15..28 m, up to e = +3 m), the crossing channel's sides
+    and an island in it: 10 polygons."""
     return [box(-50, 80, 30, 60), box(135, 230, 30, 60), box(-50, 80, -60, -30), box(135, 230, -60, -30),
             box(15, 28, -30, 3), box(50, 80, 60, 150), box(135, 165, 60, 150), box(50, 80, -150, -60),
             box(135, 165, -150, -60), rot([100, 110, 105], [100, 100, 110])]
@@ -205,7 +205,8 @@ def main(argv=None) -> int:
         points.append({"version": version, "what": what, **info[name], "timing": stats(ts)})
         print(f"{name:>16}: median {stats(ts)['median_ms']:9.2f} ms  (q1 {stats(ts)['q1_ms']:.1f}, "
               f"q3 {stats(ts)['q3_ms']:.1f}, n {len(ts)})", flush=True)
-    meta = environment_meta("Smooth-SBMPC step at paper-000 scale (SPEC §1.9 channel, 10 polygons, 4 targets, "
+    meta = environment_meta("Smooth-SBMPC step at the Smooth-SBMPC paper's scale (reconstruction channel, "
+                            "10 polygons, 4 targets, "
                             "T_init 60 s, T_mpc 20 s, dt 1 s, n_y 201, float32)", repeats=args.repeats,
                             vmap_repeats=args.vmap_repeats, batch_runs=args.batch_runs, situation_time_s=args.time,
                             schedule="interleaved", baseline=args.baseline, load_average=os.getloadavg())

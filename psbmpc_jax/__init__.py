@@ -26,6 +26,7 @@ _EXPORTS = {
     "Params": "params", "PlannerConfig": "params", "Planner": "planner",
     "Obstacle": "situation", "OwnShip": "situation", "Situation": "situation",
     "solve_sharded": "sharding", "Plan": "solve", "PlannerState": "solve", "solve": "solve",
+    "Status": "status",
 }
 
 if TYPE_CHECKING:  # pragma: no cover - for static analysis only
@@ -40,6 +41,7 @@ if TYPE_CHECKING:  # pragma: no cover - for static analysis only
     from .situation import Obstacle, OwnShip, Situation
     from .sharding import solve_sharded
     from .solve import Plan, PlannerState, solve
+    from .status import Status
 
 
 #: Public functions named like the submodule that defines them: the package attribute is the function (as
@@ -81,6 +83,6 @@ except _NoMetadata:  # pragma: no cover - a source tree that was never installed
 __all__ = [
     "Planner", "PlannerConfig", "PlannerState", "PlanResult", "Params", "OwnShip", "Obstacle", "Situation",
     "enumerate_behaviours", "enumerate_behaviours_deg", "paper_behaviours", "evaluate", "Evaluation",
-    "SolveInputs", "Capacities", "pack", "solve", "Plan", "solve_sharded", "objective", "cost_term",
+    "SolveInputs", "Capacities", "pack", "solve", "Plan", "Status", "solve_sharded", "objective", "cost_term",
     "DEFAULT_TERMS", "enable_compilation_cache", "__version__",
 ]

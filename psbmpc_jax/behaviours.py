@@ -1,4 +1,4 @@
-"""Control-behaviour grid (SPEC §3).
+"""Control-behaviour grid (Tengesdal et al. 2022, Sec. II and Table 1; docs/algorithm.md §4).
 
 A behaviour is a sequence of ``n_M`` maneuvers ``(u_M, chi_M)``: a speed factor in [0, 1] and a course
 offset [rad].  The set of behaviours is the Cartesian product of per-maneuver speed and course sets,

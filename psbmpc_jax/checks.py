@@ -33,6 +33,16 @@ MULTIPLE_TOL = 1e-9
 #: Highest plausible ship speed [m/s] (58 kn: above the fastest high-speed craft in service).  Speeds above
 #: it are refused everywhere (own-ship, obstacles, scenario ships) -- usually km/h or knots passed as m/s.
 MAX_SPEED_MPS = 30.0
+#: Largest hull length and width [m] (above the largest ships afloat), refused everywhere above.
+MAX_SHIP_LENGTH_M = 500.0
+MAX_SHIP_WIDTH_M = 100.0
+#: Farthest any position or waypoint may lie from the local NED origin [m] (scenario files and the API alike; at
+#: 200 km float32 positions still resolve 2 cm, and a larger value is a unit mix-up: lat/lon or UTM given as
+#: local metres).
+MAX_POSITION_M = 200_000.0
+#: Farthest a route waypoint handed to the planner may lie [m]: the scenario bound plus 50 km, since the
+#: closed-loop simulator extends every route past its last waypoint (by 20 km, ``sim.vessel.ROUTE_EXTENSION_M``).
+MAX_WAYPOINT_M = MAX_POSITION_M + 50_000.0
 
 #: Largest magnitude [rad] accepted for a course or direction: 2 pi.  Larger values are almost always degrees
 #: passed where radians belong (``np.deg2rad`` converts them).
@@ -104,6 +114,14 @@ def positive(value, name: str, *, allow_zero: bool = False) -> float:
     if v < 0 or (v == 0 and not allow_zero):
         raise ValueError(f"{name} must be {'>= 0' if allow_zero else '> 0'}, got {float(v)}")
     return float(v)
+
+
+def hull(value, name: str, limit: float) -> float:
+    """A hull dimension [m]: finite, ``> 0`` and at most ``limit`` (a larger value is a unit error)."""
+    v = positive(value, name)
+    if v > limit:
+        raise ValueError(f"{name} must be at most {limit:g} m (a hull dimension in metres), got {v:g}")
+    return v
 
 
 def waypoints(value, name: str, min_points: int) -> np.ndarray:
@@ -217,3 +235,15 @@ def control_plan(value, name: str, *, n: int, lower, upper, box: str, what: str,
         raise ValueError(f"{name} must lie in {box}")
     return a, missing
 
+
+def local_positions(value: np.ndarray, name: str, limit: float = MAX_POSITION_M) -> np.ndarray:
+    """``value`` (finite, last axis north/east [m]) unchanged, or an error when a point lies farther than
+    ``limit`` (:data:`MAX_POSITION_M`; waypoints :data:`MAX_WAYPOINT_M`) from the local origin."""
+    pts = np.asarray(value, float).reshape(-1, 2)
+    far = np.hypot(pts[:, 0], pts[:, 1])
+    if far.size and far.max() > limit:
+        i = int(np.argmax(far))
+        raise ValueError(f"{name}: point {pts[i].tolist()} lies {far[i] / 1000:.6g} km from the local origin; at most "
+                         f"{limit / 1000:.0f} km allowed -- positions are local metres (north, east), "
+                         "not lat/lon or UTM")
+    return value

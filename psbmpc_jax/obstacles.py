@@ -1,4 +1,5 @@
-"""Obstacle prediction: LOS scenarios and OU covariance (SPEC §4-5, docs/algorithm.md §5-6).
+"""Obstacle prediction: LOS scenarios and OU covariance (Tengesdal et al. 2022, Sec. II-A and eqs. 7–8;
+docs/algorithm.md §5-6).
 
 Axes: O obstacles (padded), S scenarios (padded to the largest n_ps), W waypoints, T = N+1 time samples.
 """

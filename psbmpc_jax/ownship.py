@@ -1,4 +1,5 @@
-"""Kinematic model + LOS path following (SPEC §2, docs/algorithm.md §2-4), as ``lax.scan`` rollouts.
+"""Kinematic model + LOS path following (Tengesdal et al. 2022, eqs. 3–6 and 19; docs/algorithm.md §2-4), as
+``lax.scan`` rollouts.
 
 The same follower predicts the own-ship under every control behaviour (kernel 1) and every obstacle
 prediction scenario.  Rows are independent: axis R is B behaviours for the own-ship, O*S for obstacles.

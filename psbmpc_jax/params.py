@@ -9,7 +9,8 @@ Two containers, following the habit of keeping *shapes* apart from *values*:
   vmapped over or differentiated.
 
 All angles are radians and all quantities SI inside the package.  Defaults are those of
-``SPEC_PSBMPC.md`` (paper Table 1 where it gives them; otherwise the authors' C++ implementation).
+the PSB-MPC paper (Tengesdal, Johansen, Grande & Blindheim 2022, Table 1) where it gives them, otherwise the authors'
+published C++ implementation (``docs/methods/psbmpc.md``, "Parameters and defaults").
 """
 
 from __future__ import annotations
@@ -231,14 +232,14 @@ def _pytree_dataclass(cls):
 class Params:
     """Array-valued planner parameters (a JAX pytree).  See the README table for meaning and source.
 
-    Own-ship model and guidance (SPEC §2): ``os_T_chi``, ``os_T_U`` [s], ``os_lookahead`` (LOS Δ) and
-    ``os_R_a`` (acceptance radius) [m].
-    Obstacle prediction (SPEC §4-5): ``ob_T_chi``, ``ob_T_U``, ``ob_lookahead``, ``ob_R_a``, ``r_ct``
-    (scenario spacing) and the OU parameters ``sigma_x``, ``sigma_y``, ``sigma_xy``, ``gamma_x``,
-    ``gamma_y``.
-    Maneuver timing (SPEC §3): ``t_ts`` [s], the spacing of the maneuver times; ``nan`` means T / n_M.
-    Collision (SPEC §6-7): ``d_safe`` [m], ``K_coll``, ``T_d`` [s], shortcut factor ``c_sigma``, and the
-    Cross-Entropy constants ``ce_rho``, ``ce_alpha``, ``ce_chi2``.
+    Own-ship model and guidance (Tengesdal et al. 2022, eqs. 3–6 and 19; docs/algorithm.md §2–3): ``os_T_chi``,
+    ``os_T_U`` [s], ``os_lookahead`` (LOS Δ) and ``os_R_a`` (acceptance radius) [m].
+    Obstacle prediction (Sec. II-A and eqs. 7–8; docs/algorithm.md §5–6): ``ob_T_chi``, ``ob_T_U``,
+    ``ob_lookahead``, ``ob_R_a``, ``r_ct`` (scenario spacing) and the OU parameters ``sigma_x``, ``sigma_y``,
+    ``sigma_xy``, ``gamma_x``, ``gamma_y``.
+    Maneuver timing (docs/algorithm.md §4): ``t_ts`` [s], the spacing of the maneuver times; ``nan`` means T / n_M.
+    Collision (eqs. 10–12; docs/algorithm.md §7–8): ``d_safe`` [m], ``K_coll``, ``T_d`` [s], shortcut factor
+    ``c_sigma``, and the Cross-Entropy constants ``ce_rho``, ``ce_alpha``, ``ce_chi2``.
     COLREGS: ``kappa``, ``d_close`` [m].
     Grounding: ``G1``, ``G2``, ``G3`` [1/m], ``G4`` [1/s], wind speed ``V_w`` [m/s] and the direction the
     wind blows towards, ``wind_dir`` [rad, NED].

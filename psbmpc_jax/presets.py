@@ -36,7 +36,8 @@ class MPCPreset:
 PRESETS: dict[str, MPCPreset] = {
     "nidelva": MPCPreset(
         name="nidelva",
-        description="Paper Table 1 (river, 5 m vessels): T 150 s, dt 0.5 s, r_ct 10 m, d_safe 5 m, 1014 behaviours",
+        description="Tengesdal et al. 2022, Table 1 (river, 5 m vessels): T 150 s, dt 0.5 s, r_ct 10 m, d_safe 5 m, "
+                    "1014 behaviours",
         config=PlannerConfig(T=150.0, dt=0.5, grounding_mode="grid", grid_spacing=1.0),
         params=Params(),
         speed_sets=PAPER_SPEEDS,
@@ -44,8 +45,8 @@ PRESETS: dict[str, MPCPreset] = {
     ),
     "sakshaug": MPCPreset(
         name="sakshaug",
-        description="Paper Table 3 (narrow strait, 10 m vessels): T 150 s, dt 1 s, r_ct 20 m, d_safe 10 m, "
-                    "course offsets +-90 deg in 15 deg steps, 1014 behaviours",
+        description="Tengesdal et al. 2022, Table 3 (narrow strait, 10 m vessels): T 150 s, dt 1 s, r_ct 20 m, "
+                    "d_safe 10 m, course offsets +-90 deg in 15 deg steps, 1014 behaviours",
         config=PlannerConfig(T=150.0, dt=1.0, grounding_mode="grid", grid_spacing=1.0),
         params=Params(r_ct=20.0, d_safe=10.0, d_close=300.0),
         speed_sets=PAPER_SPEEDS,
@@ -67,7 +68,7 @@ PRESETS: dict[str, MPCPreset] = {
     ),
     "tengesdal2020": MPCPreset(
         name="tengesdal2020",
-        description="Seed 004 (Tengesdal, Brekke & Johansen 2020; 30 m vessels at 9 m/s): T 200 s, dt 0.5 s, "
+        description="Tengesdal, Brekke & Johansen 2020 (30 m vessels at 9 m/s): T 200 s, dt 0.5 s, "
                     "d_safe 40 m, 39 behaviours (one maneuver, speeds 1/0.5/0, courses +-90 deg in 15 deg steps), "
                     "own-ship T_chi 3 s, T_U 5 s, LOS lookahead 150 m, n_ps 1 (straight-line tracks)",
         config=PlannerConfig(T=200.0, dt=0.5),
@@ -79,7 +80,7 @@ PRESETS: dict[str, MPCPreset] = {
     ),
     "akdag2022": MPCPreset(
         name="akdag2022",
-        description="Seed 002 (Akdag, Fossen & Johansen 2022; 116 m PSVs at ~6 m/s, open sea): T 600 s, dt 5 s, "
+        description="Akdağ, Fossen & Johansen 2022 (116 m PSVs at ~6 m/s, open sea): T 600 s, dt 5 s, "
                     "39 behaviours (speeds 1/0.5/0, courses +-90 deg in 15 deg steps), kinematic prediction with "
                     "T_chi 15 s, T_U 30 s (fitted to the 3-DOF PSV model), LOS lookahead 600 m, n_ps 1",
         config=PlannerConfig(T=600.0, dt=5.0),

@@ -1,8 +1,9 @@
-"""Float64 NumPy/``math`` oracle of the Informed SB-MPC cost (seed 002; docs/informed_sbmpc.md).
+"""Float64 NumPy/``math`` oracle of the Informed SB-MPC cost (Akdağ, Fossen & Johansen 2022; docs/informed_sbmpc.md).
 
 Written independently of :mod:`psbmpc_jax.costs.informed`: plain scalar loops over targets and times, the
-thresholds transcribed again from eqs. (5), (6), (8), (10) and SPEC §3.3-§3.6.  Point-to-polygon distances come
-from :func:`psbmpc_jax.reference.polygon_distances` (the library's NumPy oracle of the chart distance).
+thresholds transcribed again from eqs. (5), (6), (8), (10) of the paper and the choices of docs/algorithm.md §14.
+Point-to-polygon distances come from :func:`psbmpc_jax.reference.polygon_distances` (the library's NumPy oracle of the
+chart distance).
 
 States are (x, y, χ, U) in NED (x north, y east [m], χ [rad] clockwise from north, U [m/s]); bearings β, α are
 clockwise positive (starboard), in (−π, π].
@@ -51,7 +52,7 @@ def risk(d: float, t: float, ds: float, p: float, q: float) -> float:
 
 
 def flags_velocity(own, tgt) -> tuple[bool, bool, bool, bool]:
-    """(OG, ON, HO, CR) from the velocities of one instant (C-002-3)."""
+    """(OG, ON, HO, CR) from the velocities of one instant (IS-3)."""
     uo, ui = abs(own[3]), abs(tgt[3])
     dot = uo * ui * math.cos(tgt[2] - own[2])
     dx, dy = tgt[0] - own[0], tgt[1] - own[1]
@@ -66,7 +67,7 @@ def flags_velocity(own, tgt) -> tuple[bool, bool, bool, bool]:
 
 
 def flags_sectors(beta0: float, alpha0: float) -> tuple[bool, bool, bool, bool]:
-    """(OG, ON, HO, CR) classified at t₀ from the sectors (flag alternative of C-002-3)."""
+    """(OG, ON, HO, CR) classified at t₀ from the sectors (flag alternative of IS-3)."""
     b, a = abs(beta0), abs(alpha0)
     if b < 13.0 * _D and a < 13.0 * _D:
         return False, False, True, False
@@ -78,7 +79,7 @@ def flags_sectors(beta0: float, alpha0: float) -> tuple[bool, bool, bool, bool]:
 
 
 def mu(beta: float, d: float, flags, d_close: float) -> float:
-    """Eq. (5) in NED (C-002-1/2): CLOSE ∧ (R13 ∨ R14 ∨ R15)."""
+    """Eq. (5) in NED (IS-1/2): CLOSE ∧ (R13 ∨ R14 ∨ R15)."""
     og, on, ho, cr = flags
     if not d < d_close:
         return 0.0

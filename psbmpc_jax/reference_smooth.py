@@ -16,7 +16,8 @@ import numpy as np
 
 _LN99 = math.log(99.0)
 
-# Tables I-III (degrees, slopes per degree) and the output membership functions (C-000-3).
+# Tables I-III (degrees, slopes per degree) and the output membership functions (mu_false read as [0.05, -114.878]:
+# choice SM-3, docs/algorithm.md §12).
 _OT = (67.5, -1.5317)
 _CR_RISE, _CR_FALL = (67.5, 0.919), (157.5, -0.919)
 _HO = (157.5, 0.919)
@@ -200,8 +201,8 @@ def sbmpc_cost(own_traj, targets, t, *, component: str = "joint", aggregation: s
     over (target, time); no target gives 0.  ``lambda_T > 0`` with ``applied_traj [T, 4]`` (the rollout of the
     applied offsets) adds λ·T per (target, time) to the joint component: T = 1 when the target is in a
     transitional situation now and passes on the other side than under the applied offsets (τ ≥ τ₀ + T_s).
-    ``joint_extra [T]`` (an own-ship-only term, seed 001's ζ) is added per (target, time) to the joint
-    component; with no target the result is then max over τ ≥ τ₀ + T_s of ``joint_extra``."""
+    ``joint_extra [T]`` (an own-ship-only term, the ζ of Mahipala & Johansen 2023) is added per (target, time) to the
+    joint component; with no target the result is then max over τ ≥ τ₀ + T_s of ``joint_extra``."""
     if aggregation not in ("max", "sum"):
         raise ValueError(f"aggregation must be 'max' or 'sum', got {aggregation!r}")
     if component not in ("coll", "colregs", "joint"):

@@ -1,5 +1,5 @@
-"""Float64 NumPy/shapely oracle of the ground-avoiding constant-velocity target prediction of seed 001
-(eq. 2; :mod:`psbmpc_jax.two_level.prediction`, docs/two_level_prediction.md).  Used only by the tests.
+"""Float64 NumPy/shapely oracle of the ground-avoiding constant-velocity target prediction of Mahipala & Johansen
+(2023; eq. 2; :mod:`psbmpc_jax.two_level.prediction`, docs/two_level_prediction.md). Used only by the tests.
 
 Written independently of the JAX kernel: plain Python loops over targets, steps, polygons and edges; the ray
 distance by segment intersection per edge in Python floats, with every near-tie hit/miss decision redone in

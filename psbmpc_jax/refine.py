@@ -404,7 +404,7 @@ class Refinement(NamedTuple):
         warm_cost: smooth objective value of the best warm start (the lowest over the starts).
         violation: box violation of ``controls`` (0 inside the box).
         used_warm: the safeguard replaced the solver's result by the best warm start.
-        status: solver status of the best start (0 converged, 1 max-iter, 2 infeasible, 3 non-finite).
+        status: solver status of the best start (0 ok/converged, 3 max-iter, 4 infeasible, 5 non-finite: :class:`psbmpc_jax.status.Status`).
         iterations: L-BFGS iterations of the best start (summed over outer iterations).
         start_index: which warm start (0 = the grid's choice, 1 = its runner-up, ...; with ``previous_start``
             and a previous plan, 1 = that plan and the runner-ups from 2) the kept controls come from (the best

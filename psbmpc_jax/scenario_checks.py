@@ -29,6 +29,8 @@ import numpy as np
 import shapely
 from shapely.geometry import LineString, Point, Polygon
 
+from . import checks
+
 __all__ = [
     "MAX_DURATION_S", "MAX_RUNS", "MAX_SEED", "MAX_STEPS", "MAX_SHIPS", "MAX_WAYPOINTS", "MAX_BEHAVIOURS",
     "MAX_MANEUVERS", "MAX_SHIP_LENGTH_M", "MAX_SHIP_WIDTH_M", "MAX_POSITION_M", "MAX_SIM_MEMORY_BYTES",
@@ -53,11 +55,11 @@ MAX_WAYPOINTS = 10_000
 MAX_BEHAVIOURS = 100_000
 #: Most maneuvers (sets of speed factors / course offsets).
 MAX_MANEUVERS = 10
-#: Largest hull length and width [m].
-MAX_SHIP_LENGTH_M = 500.0
-MAX_SHIP_WIDTH_M = 100.0
-#: Farthest any position or waypoint may lie from the scenario's NED origin [m].
-MAX_POSITION_M = 200_000.0
+#: Largest hull length and width [m]; farthest any position or waypoint may lie from the NED origin [m]
+#: (defined once, in :mod:`psbmpc_jax.checks`, for the API too).
+MAX_SHIP_LENGTH_M = checks.MAX_SHIP_LENGTH_M
+MAX_SHIP_WIDTH_M = checks.MAX_SHIP_WIDTH_M
+MAX_POSITION_M = checks.MAX_POSITION_M
 #: Largest estimated simulator memory [bytes] (2 GiB); see :func:`simulation_memory_bytes`.
 MAX_SIM_MEMORY_BYTES = 2 * 1024 ** 3
 #: Land farther than this from every ship's start and route draws a warning [m].

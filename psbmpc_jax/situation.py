@@ -14,7 +14,9 @@ Frame: NED — x north, y east [m]; courses from north, clockwise positive [rad]
 Every constructor validates its input and raises ``ValueError`` naming the field and what is allowed:
 booleans and strings where numbers belong, a course with ``|chi| > 2 pi`` (degrees passed by mistake; use
 ``np.deg2rad``), speeds above :data:`psbmpc_jax.checks.MAX_SPEED_MPS` (30 m/s) for the own-ship and above
-:data:`MAX_OBSTACLE_SPEED_MPS` (60 m/s: tracker estimates are noisy) for obstacles, ``None`` or a single
+:data:`MAX_OBSTACLE_SPEED_MPS` (60 m/s: tracker estimates are noisy) for obstacles, positions, waypoints and
+land vertices farther than :data:`psbmpc_jax.checks.MAX_POSITION_M` (200 km) from the local origin, hull lengths
+above 500 m and widths above 100 m, ``None`` or a single
 :class:`Obstacle` / ring where a tuple or list belongs, and polygons that are not valid simple polygons
 (self-intersecting rings, zero area, holes outside their outer ring or overlapping each other:
 ``shapely.validation.explain_validity`` says why).  NumPy scalars and arrays are accepted everywhere.
@@ -51,7 +53,7 @@ def _ring(value, name: str) -> np.ndarray:
     arr = checks.finite_array(value, name)
     if arr.ndim != 2 or arr.shape[1] != 2 or arr.shape[0] < 3:
         raise ValueError(f"{name} must be a ring of shape [n >= 3, 2] (north, east), got {arr.shape}")
-    return arr
+    return checks.local_positions(arr, name)
 
 
 def _validity(rings: tuple) -> str | None:
@@ -153,11 +155,14 @@ class OwnShip:
             raise ValueError(f"own_ship.state speed U must be >= 0 m/s, got {state[3]}")
         checks.course(state[2], "own_ship.state course chi (state[2], radians)")
         checks.speed(state[3], "own_ship.state speed U (state[3])")
+        checks.local_positions(state[:2], "own_ship.state position (x, y)")
         object.__setattr__(self, "state", state)
-        object.__setattr__(self, "waypoints", checks.waypoints(self.waypoints, "own_ship.waypoints", 2))
+        object.__setattr__(self, "waypoints", checks.local_positions(
+            checks.waypoints(self.waypoints, "own_ship.waypoints", 2), "own_ship.waypoints",
+            checks.MAX_WAYPOINT_M))
         object.__setattr__(self, "U_d", checks.speed(self.U_d, "own_ship.U_d"))
-        object.__setattr__(self, "length", checks.positive(self.length, "own_ship.length"))
-        object.__setattr__(self, "width", checks.positive(self.width, "own_ship.width"))
+        object.__setattr__(self, "length", checks.hull(self.length, "own_ship.length", checks.MAX_SHIP_LENGTH_M))
+        object.__setattr__(self, "width", checks.hull(self.width, "own_ship.width", checks.MAX_SHIP_WIDTH_M))
 
 
 @dataclass(frozen=True)
@@ -203,6 +208,7 @@ class Obstacle:
             raise ValueError(f"obstacle.state velocity (V_x, V_y) = ({state[2]:g}, {state[3]:g}) is {v:g} m/s; at "
                              f"most {MAX_OBSTACLE_SPEED_MPS:g} m/s allowed (state is [x, y, V_x, V_y] in m and m/s: "
                              f"knots or km/h given as m/s, or [x, y, course, speed] by mistake?)")
+        checks.local_positions(state[:2], "obstacle.state position (x, y)")
         object.__setattr__(self, "state", state)
         cov = checks.finite_array(self.cov, "obstacle.cov", (4, 4))
         _check_psd(cov, "obstacle.cov")
@@ -213,10 +219,12 @@ class Obstacle:
                 f"needs a spread), got eigenvalues {pos_eig.tolist()}"
             )
         object.__setattr__(self, "cov", 0.5 * (cov + cov.T))
-        object.__setattr__(self, "length", checks.positive(self.length, "obstacle.length"))
-        object.__setattr__(self, "width", checks.positive(self.width, "obstacle.width"))
+        object.__setattr__(self, "length", checks.hull(self.length, "obstacle.length", checks.MAX_SHIP_LENGTH_M))
+        object.__setattr__(self, "width", checks.hull(self.width, "obstacle.width", checks.MAX_SHIP_WIDTH_M))
         if self.waypoints is not None:
-            object.__setattr__(self, "waypoints", checks.waypoints(self.waypoints, "obstacle.waypoints", 2))
+            object.__setattr__(self, "waypoints", checks.local_positions(
+                checks.waypoints(self.waypoints, "obstacle.waypoints", 2), "obstacle.waypoints",
+            checks.MAX_WAYPOINT_M))
         if self.leg_speeds is not None:
             if self.waypoints is None:
                 raise ValueError("obstacle.leg_speeds needs obstacle.waypoints (one speed per leg)")

@@ -22,13 +22,12 @@ from .evaluate import DEFAULT_TERMS, Evaluation, evaluate_arrays
 from .jitting import canonical_jit
 from .packing import SolveInputs
 from .params import Params, PlannerConfig
+from .status import STATUS_NAMES, Status
 
-#: ``Plan.status`` values.
-STATUS_OK = 0
-STATUS_NO_FINITE_BEHAVIOUR = 1      # every behaviour's total is inf or NaN: the plan is meaningless
-STATUS_INVALID_INPUT = 2            # a non-finite input or a parameter out of its range (:func:`inputs_valid`)
-STATUS_NAMES = {STATUS_OK: "ok", STATUS_NO_FINITE_BEHAVIOUR: "no finite behaviour",
-                STATUS_INVALID_INPUT: "invalid input (non-finite value or parameter out of range)"}
+#: ``Plan.status`` values (of the library's one status enum, :class:`psbmpc_jax.status.Status`).
+STATUS_OK = int(Status.OK)
+STATUS_NO_FINITE_BEHAVIOUR = int(Status.NO_FINITE_BEHAVIOUR)   # every behaviour's total is inf or NaN
+STATUS_INVALID_INPUT = int(Status.INVALID_INPUT)     # a non-finite input or a parameter out of its range
 
 
 @dataclass(frozen=True)

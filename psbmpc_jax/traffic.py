@@ -1,12 +1,12 @@
-"""Seeded random traffic: target ships scattered in a rectangle, for congested-traffic scenarios (seed 004 §7,
-scenario B: 13 obstacles "randomly initialised inside a 1000 m × 800 m grid", speeds 2-9 m/s).
+"""Seeded random traffic: target ships scattered in a rectangle, for congested-traffic scenarios (Tengesdal, Brekke &
+Johansen 2020, Sec. 7, scenario B: 13 obstacles "randomly initialised inside a 1000 m × 800 m grid", speeds 2-9 m/s).
 
 :func:`random_targets` returns target entries in the scenario-file format (``targets:`` of a YAML scenario,
 :mod:`psbmpc_jax.scenario`), so a generated traffic picture can be written once, committed and read back like
 any other scenario; ``scenarios/tengesdal2020_b.yaml`` was made by :func:`random_targets` with the arguments
 its description names (a test regenerates it).
 
-Rules (SPEC_SEEDS §4.7, where the paper gives none): positions uniform in the rectangle, headings uniform in
+Rules (our proposal, where the paper gives none): positions uniform in the rectangle, headings uniform in
 [0°, 360°), speeds uniform in the range; a start closer than ``min_separation`` to a point of ``keep_clear``
 (the own-ship's start) or to an earlier target is redrawn.  Targets follow straight routes (no ``waypoints_m``:
 the loader's default straight route along the initial course).

@@ -281,7 +281,6 @@ def test_edges_d0_zero_speeds_no_targets_inside_land_float32():
     ctx, own, targets, obstacle_of, t, polygons, _ = make_context(np.random.default_rng(7))
     term = inf.InformedSbmpcTerm(rho=3.0)
     # every target sits on row 0 with zero speeds; one row stopped inside the island
-    n_t = own.shape[0]
     obs = ctx.obstacles._replace(x=jnp.broadcast_to(ctx.own.x[:, :1, None], ctx.obstacles.x.shape),
                                  y=jnp.broadcast_to(ctx.own.y[:, :1, None], ctx.obstacles.y.shape),
                                  U=jnp.zeros_like(ctx.obstacles.U))

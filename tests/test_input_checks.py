@@ -58,6 +58,27 @@ def test_obstacle_speed_limit():
     obstacle(state=[0.0, 0.0, 40.0, 0.0])                     # noisy estimates up to 60 m/s are accepted
 
 
+@pytest.mark.parametrize("make, match", [
+    (lambda: own(state=[2.5e5, 0.0, 0.0, 2.0]), r"own_ship.state position \(x, y\): point \[250000.0, 0.0\] lies "
+                                                r"250 km from the local origin; at most 200 km allowed"),
+    (lambda: own(waypoints=[[0.0, 0.0], [0.0, -3e5]]), r"own_ship.waypoints: point .* lies 300 km.* at most 250 km"),
+    (lambda: obstacle(state=[63.4e5, 10.4e5, 0.0, 0.0]), r"obstacle.state position .* not lat/lon or UTM"),
+    (lambda: obstacle(waypoints=[[0.0, 0.0], [1e9, 0.0]]), r"obstacle.waypoints: point .* at most 250 km"),
+    (lambda: own(length=501.0), r"own_ship.length must be at most 500 m \(a hull dimension in metres\), got 501"),
+    (lambda: obstacle(width=5000.0), r"obstacle.width must be at most 100 m"),
+    (lambda: Situation(own(), (), polygons=(np.array([[0.0, 0.0], [0.0, 1.0], [3e5, 0.0]]),)),
+     r"polygon.* point \[300000.0, 0.0\] lies 300 km"),
+])
+def test_positions_and_hulls_outside_their_plausible_range_are_refused(make, match):
+    with pytest.raises(ValueError, match=match):
+        make()
+    own(state=[1.99e5, 0.0, 0.0, 2.0], waypoints=[[0.0, 0.0], [0.0, 2e5]], length=500.0, width=100.0)
+    # a scenario's farthest waypoint, extended by the simulator past the route's end, is still accepted
+    from psbmpc_jax.sim.vessel import ROUTE_EXTENSION_M, extend_route
+    assert checks.MAX_POSITION_M + ROUTE_EXTENSION_M <= checks.MAX_WAYPOINT_M
+    own(waypoints=extend_route(np.array([[0.0, 0.0], [0.0, checks.MAX_POSITION_M]])))
+
+
 # ------------------------------------------------------------------------------------------ types
 @pytest.mark.parametrize("make, match", [
     (lambda: own(state=[0.0, 0.0, 0.0, True]), r"own_ship.state must be numeric \(real numbers, not bool"),
@@ -221,7 +242,7 @@ def test_planner_refuses_t_ts_beyond_the_horizon_and_a_bad_key():
     with pytest.raises(ValueError, match="t_ts"):
         Planner(PlannerConfig(T=60.0), params=Params(t_ts=100.0))
     with pytest.raises(ValueError, match="key"):
-        from psbmpc_jax import Obstacle, OwnShip, Situation
+        from psbmpc_jax import OwnShip, Situation
 
         own = OwnShip([0.0, 0.0, 0.0, 2.0], [[0.0, 0.0], [500.0, 0.0]], 2.0)
         Planner(PlannerConfig(estimator="mc")).prepare(Situation(own, ()), key=12345)

@@ -323,7 +323,7 @@ def test_no_recompilation_when_numeric_data_change():
     res = solve_docp(quad, jnp.zeros((N, 2)), lower=lo, upper=hi, settings=adam, args=a0)
     assert solve_docp.jitted._cache_size() == size + 1
     ref = solve_docp(quad, jnp.zeros((N, 2)), lower=lo, upper=hi, settings=S, args=a0)
-    assert int(res.status) in (0, 1) and float(res.f) == pytest.approx(float(ref.f), rel=1e-3)
+    assert int(res.status) in (CONVERGED, MAX_ITER) and float(res.f) == pytest.approx(float(ref.f), rel=1e-3)
     u = np.asarray(res.u)
     assert np.all(np.abs(u) <= 1.0) and np.any(np.abs(u) == 1.0)   # projection: exactly on the bound
 

@@ -4,8 +4,6 @@ edges, and a new cost term added by one module plus its reference counterpart.""
 from __future__ import annotations
 
 import math
-from dataclasses import replace
-from functools import partial
 
 import jax
 import jax.numpy as jnp

@@ -60,11 +60,14 @@ def test_readme_commands_match_ci():
     ci = (ROOT / ".ci" / "run").read_text()
     test_cmd = 'python3 -m pip install -q -e ".[test]" && python3 -m pytest -q'
     assert test_cmd in text
-    # .ci/run runs the same two steps, then the strict documentation build (after the tests)
+    # .ci/run runs the same two steps, then the lint and the strict documentation build (after the tests)
     assert 'python3 -m pip install -q -e ".[test]"' in ci and "python3 -m pytest -q" in ci
     assert "python3 -m pip install -e . && psbmpc-jax run nidelva" in text
     docs = 'python3 -m mkdocs build --strict'
     assert docs in ci and ci.index(docs) > ci.index("python3 -m pytest -q")
+    # and the lint (ruff's rules are in pyproject.toml; ruff is in the test extra)
+    lint = "python3 -m ruff check ."
+    assert lint in ci and ci.index(lint) > ci.index("python3 -m pytest -q")
 
 
 def test_readme_links_resolve():

@@ -16,6 +16,7 @@ from psbmpc_jax.two_level.path_mpc import (PathMpcData, PathMpcSettings, make_ci
                                            rk4_step, solve_path_mpc)
 
 from conftest import central_difference
+from psbmpc_jax.status import Status
 
 SET = PathMpcSettings(N_p=20, U_max=4.0)
 
@@ -99,7 +100,7 @@ def test_straight_channel_reaches_the_waypoint_inside_the_corridor():
     assert np.hypot(*(traj[-1, :2] - [300.0, 0.0])) < 10.0
     assert np.max(np.abs(traj[:, 1])) <= 20.0 + 1e-3
     assert np.min(np.hypot(traj[:, 0] - 150.0, traj[:, 1])) >= 12.0 + SET.r_os - 1e-3
-    assert all(int(r.status) in (0, 1) and float(r.violation) <= 1e-3 for r in results)
+    assert all(int(r.status) in (Status.OK, Status.MAX_ITER) and float(r.violation) <= 1e-3 for r in results)
     # no recompilation: every solve after the first reused the compiled solver
     assert pm._solve_jit._cache_size() - compiled_before <= 1
 

@@ -217,8 +217,8 @@ def _work_fits(groups):
         return []
     return ["## Runtime vs evaluated collision work (n_ps sweeps)", "",
             "`n_pc_blocks` = (row, time-block) pairs the collision-probability estimator evaluated after the "
-            "σ-shortcut (SPEC §6): far prediction scenarios never come within d_safe + c_σ·σ of a candidate "
-            "trajectory and skip the estimator. The runtime has two n_ps-dependent parts: the dense pass over "
+            "σ-shortcut (docs/algorithm.md §7): far prediction scenarios never come within d_safe + c_σ·σ of a "
+            "candidate trajectory and skip the estimator. The runtime has two n_ps-dependent parts: the dense pass over "
             "every (time, scenario, behaviour) point (COLREGS flags and the σ test), linear in n_ps, and the "
             "estimator, linear in n_pc_blocks. Where the blocks saturate (a fixed r_ct fans the outer scenarios "
             "far away) the runtime keeps rising with n_ps through the dense pass, and this fit is poorer than "

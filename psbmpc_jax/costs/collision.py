@@ -1,4 +1,4 @@
-"""Collision probability estimators (SPEC §6, docs/algorithm.md §7).
+"""Collision probability estimators (the probability P̂_c of Tengesdal et al. 2022, eq. 12; docs/algorithm.md §7).
 
 All estimators take point pairs in *relative* form — ``dx, dy`` = obstacle mean minus own-ship position,
 the obstacle positional covariance ``(sxx, sxy, syy)`` and the disc radius ``R`` — as arrays of any common

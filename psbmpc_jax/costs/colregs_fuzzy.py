@@ -13,7 +13,8 @@ Inputs of one (target, time) pair:
 
 :func:`encounter_inputs` computes them from own-ship and target states ``(x, y, χ, U)``.
 
-Algorithm (the documented choices C-000-2, -3, -4, -5, -15)::
+Algorithm (with our readings SM-2, SM-3, SM-4, SM-5 and SM-15 of docs/algorithm.md §12 where the paper's printed
+tables are ambiguous)::
 
     OT = sig(ΔCOG; 67.5°, −1.5317/°)                 CR = sig(ΔCOG; 67.5°, 0.919)·sig(ΔCOG; 157.5°, −0.919)
     HO = sig(ΔCOG; 157.5°, 0.919)                    SB = sig(RB; 0°, 0.919)
@@ -56,16 +57,18 @@ LN99 = math.log(99.0)
 RAD2DEG = 180.0 / math.pi
 DEG2RAD = math.pi / 180.0
 
-# Table I-III parameters as printed in the paper ([GIVEN]); every slope is 2 ln 99 / w (1 % -> 99 % over a
+# Table I-III parameters as printed in the paper; every slope is 2 ln 99 / w (1 % -> 99 % over a
 # width w: 6°, 10°, 0.08).  Angles in degrees, slopes per degree.
 OT_CENTRE, OT_SLOPE = 67.5, -1.5317
 CR_LO, CR_HI, CR_SLOPE = 67.5, 157.5, 0.919
 HO_CENTRE, HO_SLOPE = 157.5, 0.919
 SB_CENTRE, SB_SLOPE = 0.0, 0.919
 SBAH_HI = 67.5
-MU_TRUE_CENTRE, MU_FALSE_CENTRE, MU_SLOPE = 0.95, 0.05, 114.878   # C-000-3: mu_false = [0.05, -114.878]
+#: SM-3 (docs/algorithm.md §12): mu_false printed "[0, 05 114.878, 0, 1]", read as [0.05, -114.878].
+MU_TRUE_CENTRE, MU_FALSE_CENTRE, MU_SLOPE = 0.95, 0.05, 114.878
 
-#: Defaults ([NOT GIVEN -> PROPOSED]): smooth-max epsilon, output grid size, COLREGS distance, its extension.
+#: Defaults (our proposals: the paper gives none): smooth-max epsilon, output grid size, COLREGS distance, its
+#: extension.
 DEFAULT_EPS = 1e-6
 DEFAULT_N_Y = 201
 DEFAULT_D_CL = 40.0
@@ -182,9 +185,9 @@ class RuleStrengths(NamedTuple):
 
 
 def memberships(delta_cog_deg, rb_deg, d, d_cl=DEFAULT_D_CL, e_cl=DEFAULT_E_CL) -> Memberships:
-    """Membership degrees from ΔCOG [deg], RB [deg] and d [m] (C-000-2: dsigmf = product of a rising and a
-    falling sigmoid; C-000-5: CL = sig(d; d_cl, −ln 99 / e_cl), so CL(d_cl) = 0.5 and CL(d_cl + e_cl) = 0.01).
-    OT is computed for completeness; the rule base does not use it (NOT OVERTAKEN is implied by CR)."""
+    """Membership degrees from ΔCOG [deg], RB [deg] and d [m] (SM-2: dsigmf = product of a rising and a falling
+    sigmoid; SM-5: CL = sig(d; d_cl, −ln 99 / e_cl), so CL(d_cl) = 0.5 and CL(d_cl + e_cl) = 0.01). OT is computed for
+    completeness; the rule base does not use it (NOT OVERTAKEN is implied by CR)."""
     sb = sig(rb_deg, SB_CENTRE, SB_SLOPE)
     return Memberships(
         OT=sig(delta_cog_deg, OT_CENTRE, OT_SLOPE),
@@ -198,9 +201,9 @@ def memberships(delta_cog_deg, rb_deg, d, d_cl=DEFAULT_D_CL, e_cl=DEFAULT_E_CL) 
 
 def rule_strengths(m: Memberships, eps=DEFAULT_EPS, completion: str = "default_false") -> RuleStrengths:
     """Rules (19)-(21) with min_ε for AND, 1 − (·) for NOT, max_ε for the OR of the two "true" rules; every
-    strength clipped to [0, 1].  ``completion="default_false"`` (C-000-4) fires "false" with
-    max_ε(r3, 1 − r_T), so the FIS reproduces the Boolean original where no rule fires; ``"literal"`` uses
-    r3 alone."""
+    strength clipped to [0, 1]. ``completion="default_false"`` (our completion SM-4: the printed rules leave regions
+    where none fires) fires "false" with max_ε(r3, 1 − r_T), so the FIS reproduces the Boolean original where no rule
+    fires; ``"literal"`` uses r3 alone."""
     check_choice("completion", completion, COMPLETIONS)
     r1 = clip01(smooth_min(smooth_min(m.HO, m.SBAH, eps), m.CL, eps))
     r2 = clip01(smooth_min(smooth_min(m.CR, m.SB, eps), m.CL, eps))
@@ -217,7 +220,7 @@ def output_grid(n_y: int, dtype=None):
 
 def defuzzify(r_t, r_f, eps=DEFAULT_EPS, n_y: int = DEFAULT_N_Y):
     """Centre of gravity (rectangle rule on ``n_y`` points of [0, 1]) of the aggregate
-    max_ε(r_T·T(y), r_F·F(y)) (product implication, C-000-15).  An all-zero aggregate (possible only with
+    max_ε(r_T·T(y), r_F·F(y)) (product implication, our reading SM-15).  An all-zero aggregate (possible only with
     ε = 0 and the literal completion) gives 0.5, the CoG of a flat output.  Evaluated literally (every grid
     point); :func:`defuzzify_fast` computes the same value faster for strengths in [0, 1]."""
     check_n_y(n_y)
@@ -363,7 +366,7 @@ def fis_colregs(delta_cog, rb, d, *, d_cl=DEFAULT_D_CL, e_cl=DEFAULT_E_CL, eps=D
         d: own-ship–target distance [m].
         d_cl: COLREGS "close" distance [m] (> 0); e_cl: its extension [m] (> 0, proposed: own-ship length).
         eps: smooth max/min parameter ε (≥ 0; proposed 1e-6). n_y: output grid points (integer ≥ 2).
-        completion: ``"default_false"`` (C-000-4, default) or ``"literal"`` (rule (21) only).
+        completion: ``"default_false"`` (choice SM-4, default) or ``"literal"`` (rule (21) only).
         angles: ``"rad"`` (default) or ``"deg"``.
     """
     check_fis_params(d_cl, e_cl, eps, n_y, completion)

@@ -1,4 +1,4 @@
-"""Grounding cost (eqs. 15-16, SPEC §7; docs/algorithm.md §8) on padded polygon arrays.
+"""Grounding cost (Tengesdal et al. 2022, eqs. 15-16; docs/algorithm.md §8) on padded polygon arrays.
 
 Polygons arrive prepared (simplified, range-filtered) as ``vertices [P, V, 2]`` with ``next [P, V]`` (the
 next vertex of the same ring: a polygon may hold several rings — outer ring and holes — back to back) and

@@ -1,23 +1,27 @@
-"""The cost of Informed SB-MPC (Akdağ, Fossen & Johansen 2022, seed 002; SPEC §3.3-§3.6, docs/informed_sbmpc.md).
+"""The cost of Informed SB-MPC (Akdağ, Fossen & Johansen 2022, Secs. 2.2 and 2.4; docs/informed_sbmpc.md).
 
-H^k = max_i max_{t ≥ t₀+T_s} ( C_i R_i + κ_i μ_i + ρ_i ζ_i ) + γ·max_t 𝓖   (eq. 2 without f; C-002-4)
+H^k = max_i max_{t ≥ t₀+T_s} ( C_i R_i + κ_i μ_i + ρ_i ζ_i ) + γ·max_t 𝓖   (eq. 2 without f)
+
+with 𝓖 read outside the max (choice IS-4; the choices IS-n are listed in docs/algorithm.md §14).
 
 Pure, vectorised ``jax.numpy`` pieces (NED: x north, y east [m], courses [rad] clockwise from north; β, α
 clockwise positive = starboard, in (−π, π]):
 
 * :func:`relative_bearing` β (target seen from the own-ship) and :func:`contact_angle` α (own-ship seen from
   the target, relative to the target's heading);
-* :func:`adaptive_d_safe`: d_safe = c_dist / (|β|^k + l) (eq. 10, β in radians, per predicted t; C-002-7);
-* :func:`colregs_woerner`: μ = CLOSE ∧ (R13 ∨ R14 ∨ R15) of eq. (5) read in NED (C-002-1, C-002-2), with the
-  encounter flags from the predicted velocities per t (``classify="velocity"``, C-002-3) or classified once
-  at t₀ from Woerner-type sectors (``classify="sectors_t0"``);
-* :func:`rule18_zeta`: ζ of eq. (6) (m = 1.1, n = 1), gated by d ≤ d_close (C-002-5);
+* :func:`adaptive_d_safe`: d_safe = c_dist / (|β|^k + l) (eq. 10, β in radians, per predicted t: our reading IS-7);
+* :func:`colregs_woerner`: μ = CLOSE ∧ (R13 ∨ R14 ∨ R15) of eq. (5) read in NED (R15's printed "∨ ¬ON" as "∧ ¬ON", the
+  paper's counter-clockwise β mirrored: choices IS-1, IS-2), with the encounter flags from the predicted velocities
+  per t (``classify="velocity"``, choice IS-3) or classified once at t₀ from Woerner-type sectors
+  (``classify="sectors_t0"``);
+* :func:`rule18_zeta`: ζ of eq. (6) (m = 1.1, n = 1), gated by d ≤ d_close (choice IS-5);
 * :func:`grounding_penalty`: 𝓖 of eq. (8), d clamped ≥ 0.1 m;
 
 and :class:`InformedSbmpcTerm` (``"informed"``) that puts them into the evaluator with per-target parameter
-sets P_default / P_R18 (eq. 11, C-002-8).  The manoeuvring cost f (eq. 7) is
-``SmoothManoeuvringTerm(form="johansen", side="offset")`` (C-002-6); route exchange and the XTD supervisor are
-prediction (the obstacles' trajectories), not cost.
+sets P_default / P_R18 (eq. 11; per-target sets for the target terms, P_default for f and 𝓖: choice IS-8).  The
+manoeuvring cost f (eq. 7) is ``SmoothManoeuvringTerm(form="johansen", side="offset")`` (the side from the sign
+of the candidate offset: choice IS-6); route exchange and the XTD supervisor are prediction (the obstacles'
+trajectories), not cost.
 """
 
 from __future__ import annotations
@@ -44,15 +48,15 @@ R13_SECTOR = 22.5 * DEG
 R14_PORT_LIMIT = 13.0 * DEG
 ZETA_BOW = 22.5 * DEG
 ZETA_BEAM = 90.0 * DEG
-#: Sectors of the flag alternative (C-002-3): head-on |β|, |α| < 13°; OG |α| > 112.5° ∧ |β| < 67.5°;
+#: Sectors of the flag alternative (choice IS-3): head-on |β|, |α| < 13°; OG |α| > 112.5° ∧ |β| < 67.5°;
 #: ON |β| > 112.5° ∧ |α| < 67.5°; otherwise crossing if |β| ≤ 112.5°.
 HEAD_ON_SECTOR = 13.0 * DEG
 ABAFT_SECTOR = 112.5 * DEG
 AHEAD_SECTOR = 67.5 * DEG
-#: 𝓖 evaluates (d_saf / max(d, G_D_FLOOR))^q_g (C-002-4 [CHOICE] clamp d ≥ 0.1 m).
+#: 𝓖 evaluates (d_saf / max(d, G_D_FLOOR))^q_g (our choice: clamp d ≥ 0.1 m).
 G_D_FLOOR = 0.1
 
-# SPEC §3.6 proposed values (open sea, 116 m ships).
+# Our proposed values (open sea, 116 m ships; the paper gives none): docs/informed_sbmpc.md, "Parameters".
 DEFAULT_K_COLL, DEFAULT_K_COLL_R18 = 0.5, 1.0
 DEFAULT_KAPPA, DEFAULT_KAPPA_R18 = 3.0, 3.0
 DEFAULT_RHO, DEFAULT_RHO_R18 = 0.0, 3.0
@@ -81,7 +85,7 @@ def relative_bearing(own_x, own_y, own_chi, tgt_x, tgt_y):
 
 
 def contact_angle(own_x, own_y, tgt_x, tgt_y, tgt_chi):
-    """α = bearing of the own-ship from the target relative to the target's heading, in (−π, π] (SPEC §0.1)."""
+    """α = bearing of the own-ship from the target relative to the target's heading, in (−π, π]."""
     return relative_bearing(tgt_x, tgt_y, tgt_chi, own_x, own_y)
 
 
@@ -93,7 +97,7 @@ def _abs_pow(a, k):
 
 
 def adaptive_d_safe(beta, c_dist=DEFAULT_C_DIST, k=DEFAULT_K, l=DEFAULT_L):
-    """d_safe = c_dist / (|β|^k + l) (eq. 10; β in radians, C-002-7).  k = 2, l = 1, c_dist = 500 m: 500 m
+    """d_safe = c_dist / (|β|^k + l) (eq. 10; β in radians, IS-7).  k = 2, l = 1, c_dist = 500 m: 500 m
     ahead, 309 m at 45°, 144 m abeam, 76 m at 135°, 46 m astern."""
     check_param("c_dist", c_dist, lo=0.0, lo_open=True)
     check_param("k", k, lo=0.0)
@@ -103,7 +107,7 @@ def adaptive_d_safe(beta, c_dist=DEFAULT_C_DIST, k=DEFAULT_K, l=DEFAULT_L):
 
 # ------------------------------------------------------------------------------------------ COLREGS (5)
 def encounter_flags_velocity(own_x, own_y, own_chi, own_U, tgt_x, tgt_y, tgt_chi, tgt_U):
-    """(OG, ON, HO, CR) from the velocities of one instant (C-002-3, Johansen's tests):
+    """(OG, ON, HO, CR) from the velocities of one instant (IS-3, Johansen's tests):
     OG: v_o·v_i > cos 67.5° ‖v_o‖‖v_i‖ ∧ ‖v_o‖ > ‖v_i‖; ON: the same with ‖v_i‖ > ‖v_o‖;
     HO: ‖v_o‖ > 0.05 ∧ v_o·v_i < −cos 22.5° ‖v_o‖‖v_i‖ ∧ v_o·L > cos 67.5° ‖v_o‖;
     CR: ‖v_o‖ > 0.05 ∧ v_o·v_i < cos 67.5° ‖v_o‖‖v_i‖ (LIB CROSSED with its speed guard)."""
@@ -123,7 +127,7 @@ def encounter_flags_velocity(own_x, own_y, own_chi, own_U, tgt_x, tgt_y, tgt_chi
 
 
 def encounter_flags_sectors(beta0, alpha0):
-    """(OG, ON, HO, CR) classified once from the bearings at t₀ (the flag alternative of C-002-3):
+    """(OG, ON, HO, CR) classified once from the bearings at t₀ (the flag alternative of IS-3):
     HO |β| < 13° ∧ |α| < 13°; OG |α| > 112.5° ∧ |β| < 67.5°; ON |β| > 112.5° ∧ |α| < 67.5°; otherwise CR
     (= CR_GW ∨ CR_SO) when |β| ≤ 112.5° (β₀ = 0 counts as crossing)."""
     b, a = jnp.abs(beta0), jnp.abs(alpha0)
@@ -135,7 +139,7 @@ def encounter_flags_sectors(beta0, alpha0):
 
 
 def woerner_mu(beta, d, flags, d_close=DEFAULT_D_CLOSE):
-    """μ = (d < d_close) ∧ (R13 ∨ R14 ∨ R15) from the flags (OG, ON, HO, CR) and β(t) (NED, C-002-1/2):
+    """μ = (d < d_close) ∧ (R13 ∨ R14 ∨ R15) from the flags (OG, ON, HO, CR) and β(t) (NED, IS-1/2):
     R13 = OG ∧ |β| < 22.5°, R14 = HO ∧ β > −13°, R15 = CR ∧ β ≥ 0 ∧ ¬ON.  Boolean."""
     og, on, ho, cr = flags
     r13 = og & (jnp.abs(beta) < R13_SECTOR)
@@ -146,7 +150,7 @@ def woerner_mu(beta, d, flags, d_close=DEFAULT_D_CLOSE):
 
 def colregs_woerner(own_x, own_y, own_chi, own_U, tgt_x, tgt_y, tgt_chi, tgt_U, d_close=DEFAULT_D_CLOSE, *,
                     classify: str = "velocity", t0=None):
-    """μ ∈ {0, 1} of eq. (5) (NED reading, SPEC §3.3) as the arrays' float dtype, all inputs broadcast.
+    """μ ∈ {0, 1} of eq. (5) (NED reading, choices IS-1 and IS-2) as the arrays' float dtype, all inputs broadcast.
 
     ``classify="velocity"``: OG/ON/HO/CR from the predicted velocities at each t (:func:`encounter_flags_velocity`);
     ``"sectors_t0"``: classified once from β, α at t₀ (:func:`encounter_flags_sectors`), ``t0`` = (own_x0,
@@ -170,7 +174,7 @@ def colregs_woerner(own_x, own_y, own_chi, own_U, tgt_x, tgt_y, tgt_chi, tgt_U, 
 # ------------------------------------------------------------------------------------------ Rule 18 (6)
 def rule18_zeta(beta, alpha, m=DEFAULT_M, n=DEFAULT_N, *, d=None, d_close=DEFAULT_D_CLOSE):
     """ζ of eq. (6): m if |β| ≤ 22.5° ∨ |α| ≤ 22.5° (first branch first), n if 22.5° < |α| ≤ 90°, else 0.
-    With ``d`` given, gated by d ≤ d_close (C-002-5)."""
+    With ``d`` given, gated by d ≤ d_close (IS-5)."""
     check_param("m", m, lo=0.0)
     check_param("n", n, lo=0.0)
     b, a = jnp.abs(beta), jnp.abs(alpha)

@@ -28,8 +28,8 @@ from .base import Context, TermValue
 from .colregs_fuzzy import check_choice, check_param, sig
 from .sbmpc import smooth_cost_term
 
-#: Proposed weights (SPEC §1.8): k_U, Δ_U (SB-MPC reference defaults), k_χ and Δ_χ port/starboard (rad⁻²,
-#: Tengesdal et al. 2020 Table 1).
+#: Our proposed weights (Mahipala & Johansen 2024 give none): k_U, Δ_U (SB-MPC reference defaults), k_χ and Δ_χ
+#: port/starboard (rad⁻², Tengesdal et al. 2020 Table 1).
 DEFAULT_K_U = 2.5
 DEFAULT_DELTA_U = 2.0
 DEFAULT_K_CHI_PORT = 1.8
@@ -96,8 +96,9 @@ def gamma(u_m, chi_m, u_last, chi_last, *, form: str = "smooth", side: str = "ch
 
 def gamma_sequence(controls, last, *, form: str = "smooth", side: str = "change", **weights):
     """Σ_k Γ(u_k; u_{k−1}) over a control sequence ``controls [..., N, 2]`` (speed factor, course offset) with
-    u_{−1} = ``last [..., 2]`` (C-000-13: "last" inside the DOCP is the previous step's control, the applied
-    one at τ₀).  For N = 1 this is Γ of one constant behaviour (eq. 2).  Returns ``[...]``."""
+    u_{−1} = ``last [..., 2]`` (our reading SM-13, docs/algorithm.md §12: "last" inside the DOCP is the previous
+    step's control, the applied one at τ₀). For N = 1 this is Γ of one constant behaviour (eq. 2). Returns
+    ``[...]``."""
     c = jnp.asarray(controls)
     lst = jnp.asarray(last, c.dtype)
     if c.ndim < 2 or c.shape[-1] != 2 or c.shape[-2] < 1:
@@ -126,7 +127,7 @@ class SmoothManoeuvringTerm:
     behaviour (n_M = 1); with n_M > 1 maneuvers, the chain Σ_m Γ(u_m; u_{m−1}), u_{−1} = last.
     ``aggregation="sum"`` (DOCP, eq. 27): Σ_{k=0}^{N−1} Γ(u_k; u_{k−1}) over the N per-step controls (the
     maneuvers expanded to steps; with per-step controls, n_M = N, the rows themselves), u_{−1} = the applied
-    ``ctx.last_offsets`` (C-000-13).  ``form``: ``"smooth"`` (eq. 25) or ``"johansen"`` (eq. 12; ``side`` picks
+    ``ctx.last_offsets`` (choice SM-13).  ``form``: ``"smooth"`` (eq. 25) or ``"johansen"`` (eq. 12; ``side`` picks
     the Δ_χ side rule)."""
 
     name = "manoeuvring"

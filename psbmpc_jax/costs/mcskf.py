@@ -1,4 +1,4 @@
-"""The collision-risk method of Tengesdal, Brekke & Johansen (2020) ("seed 004"; SPEC_SEEDS §4.4-§4.6,
+"""The collision-risk method of Tengesdal, Brekke & Johansen (2020, Secs. 4–6, eqs. 14–20;
 docs/mcskf.md): a Monte-Carlo estimate of a 4-D straight-line CPA collision probability at every prediction
 step, filtered along the horizon by a scalar Kalman filter (MCS + KF), and the PSB-MPC cost of eq. (20).
 
@@ -16,8 +16,8 @@ Pieces:
 * :func:`cholesky4`: a semi-definite-safe Cholesky factor (a zero pivot gives a zero column, no NaN).
 * :func:`cpa_time`: the CPA time of the straight-line means, with the relative-speed floor ε_v.
 * :func:`mcs_estimates`: y = the fraction of samples x̄ + L z inside the safety zone, for the two readings of
-  the event (``event="mean_cpa"``: at the CPA time of the means, SPEC "The indicator, precisely" [CHOICE];
-  ``"sample_cpa"``: each sample's own CPA distance, the alternative reading).
+  the event (``event="mean_cpa"``: at the CPA time of the means, our reading, the one that reproduces the paper's Fig.
+  3; ``"sample_cpa"``: each sample's own CPA distance, the alternative reading).
 * :class:`Psbmpc2020Term` (``"psbmpc2020"``): eq. (20) on the evaluator's :class:`~.base.Context`.
 
 The float64 oracle is :mod:`psbmpc_jax.reference_mcskf`.
@@ -33,10 +33,11 @@ from .colregs_fuzzy import check_choice, check_param
 from .colregs import stop_remedy
 from .sbmpc import colregs_boolean_xy
 
-#: Readings of the collision event 𝒮 (SPEC §4.4): ``"mean_cpa"`` [CHOICE] and ``"sample_cpa"`` [alternative].
+#: Readings of the collision event 𝒮 (eq. 19; docs/mcskf.md): ``"mean_cpa"`` (our choice) and ``"sample_cpa"`` (the
+#: alternative).
 EVENTS = ("mean_cpa", "sample_cpa")
 
-# Table 1 of the paper (and SPEC §4.4-4.6 [GIVEN] / [PROPOSED]).
+# Table 1 of the paper where it gives a value, otherwise our proposal (docs/mcskf.md).
 DEFAULT_N_MC = 100
 DEFAULT_Q_P = 5e-5
 DEFAULT_R_P = 1e-3
@@ -44,10 +45,10 @@ DEFAULT_V0 = 0.3
 DEFAULT_P0 = 0.0
 DEFAULT_T_C = 6.0
 DEFAULT_D_SAFE = 40.0
-DEFAULT_K_COLL = 1.0          # NOT GIVEN -> PROPOSED
+DEFAULT_K_COLL = 1.0          # not in the paper: our proposal
 DEFAULT_KAPPA = 10.0
-DEFAULT_D_CL = 200.0          # NOT GIVEN -> PROPOSED
-DEFAULT_EPS_V = 0.25          # PROPOSED: the authors' calculate_cpa relative-speed floor [m/s]
+DEFAULT_D_CL = 200.0          # not in the paper: our proposal
+DEFAULT_EPS_V = 0.25          # our proposal: the authors' calculate_cpa relative-speed floor [m/s]
 
 #: Relative pivot threshold of :func:`cholesky4` (times the machine epsilon and the largest diagonal entry).
 CHOL_TOL = 64.0

@@ -5,12 +5,13 @@ Pure, vectorised, differentiable ``jax.numpy`` functions (NED: x north, y east [
 clockwise positive):
 
 * :func:`adhoc_risk`: the ad hoc collision risk R, crisp (3) or ungated (17);
-* :func:`sigma_coll`: the distance gate σ_coll (16), falling, slope a₂ = −ln 99 / (w_coll d_safe) (C-000-1);
+* :func:`sigma_coll`: the distance gate σ_coll (16), falling, slope a₂ = −ln 99 / (w_coll d_safe) (our reading, choice
+  SM-1 of docs/algorithm.md §12: the paper calls the slope tunable and gives neither its sign nor a value);
 * :func:`collision_weight`: C = K_coll ‖v_o − v_i‖² (4)/(18);
 * :func:`collision_hazard`: σ_coll·C·R (smooth) or C·R (crisp) of one (target, time) pair;
 * :func:`colregs_boolean`: the original Boolean COLREGS indicator μ (5)-(10) (crisp);
 * :func:`aggregate`: max over (target, time) (eq. 2, the initialisation stage) or sum over (target, time)
-  (eq. 27, the DOCP), over the times τ ≥ τ₀ + T_s only (C-000-10);
+  (eq. 27, the DOCP), over the times τ ≥ τ₀ + T_s only (R is singular at τ₀; choice SM-10);
 * :func:`sbmpc_costs`: all of the above on one own-ship trajectory and its targets' trajectories;
 
 and the cost terms that plug them into the evaluator / objective (:mod:`psbmpc_jax.evaluate`,
@@ -33,14 +34,15 @@ from .colregs import violation
 from .colregs_fuzzy import (COMPLETIONS, DEFAULT_D_CL, DEFAULT_E_CL, DEFAULT_EPS, DEFAULT_N_Y, LN99, check_choice,
                             check_fis_params, check_param, encounter_inputs_xy, fis_colregs, sig)
 
-#: Defaults for a ~5 m inland vessel at ~1 m/s (SPEC §1.8 "proposed"); p, q are the paper's "typical" values.
+#: Defaults for a ~5 m inland vessel at ~1 m/s (our proposal: Mahipala & Johansen 2024 give no numbers for these); p,
+#: q are the paper's "typical" values.
 DEFAULT_D_SAFE = 10.0
 DEFAULT_K_COLL = 1.0
 DEFAULT_KAPPA = 10.0
 DEFAULT_P = 1.0
 DEFAULT_Q = 4.0
-DEFAULT_W_COLL = 0.1          # C-000-1: gate width as a fraction of d_safe (99 % at 0.9 d_safe, 1 % at 1.1 d_safe)
-#: Weight λ of the COLREGS-transitional term (used only with ``transitional=True``; NOT GIVEN in the papers).
+DEFAULT_W_COLL = 0.1          # SM-1: gate width as a fraction of d_safe (99 % at 0.9 d_safe, 1 % at 1.1 d_safe)
+#: Weight λ of the COLREGS-transitional term (used only with ``transitional=True``; the papers give no value; ours).
 DEFAULT_LAMBDA_T = 10.0
 #: R is evaluated at max(d, RISK_D_FLOOR · d_safe) (finite value and gradient at d = 0).
 RISK_D_FLOOR = 1e-3
@@ -54,7 +56,7 @@ COLREGS_FORMS = ("fis", "boolean")
 
 # ------------------------------------------------------------------------------------------ pieces
 def coll_slope(d_safe, w_coll=DEFAULT_W_COLL):
-    """Slope a₂ of σ_coll: −ln 99 / (w_coll·d_safe) (C-000-1; negative, a falling curve)."""
+    """Slope a₂ of σ_coll: −ln 99 / (w_coll·d_safe) (choice SM-1, docs/algorithm.md §12; negative, a falling curve)."""
     return -LN99 / (w_coll * d_safe)
 
 
@@ -166,7 +168,8 @@ def passing_side(own_x, own_y, own_chi, tgt_x, tgt_y):
 def transitional_indicator(ctx: Context, d_cl=DEFAULT_D_CL):
     """T [O·S, B] ∈ {0, 1}: target i is in a transitional situation now (:func:`transitional_situation`) and
     behaviour l makes it pass on the other side than the applied offsets would (:func:`passing_side` of
-    ``ctx.own`` against ``ctx.own_applied``, over τ ≥ τ₀ + T_s).  Constant over the horizon (C-004-7)."""
+    ``ctx.own`` against ``ctx.own_applied``, over τ ≥ τ₀ + T_s). Constant over the horizon (choice SB-7,
+    docs/algorithm.md §13)."""
     if ctx.own_applied is None:
         raise ValueError("the transitional term needs Context.own_applied (the rollout of the applied offsets): "
                          "evaluate with terms that declare needs_applied, through psbmpc_jax.evaluate.context("
@@ -188,7 +191,8 @@ def transitional_indicator(ctx: Context, d_cl=DEFAULT_D_CL):
 def aggregate(h, aggregation: str = "max", valid=None):
     """Reduce ``h [K, I, ...]`` (time-major: K times τ₀ + T_s … τ₀ + T, I targets) to ``[...]``:
     ``"max"``: max over (time, target) (eq. 2); ``"sum"``: sum over both (eq. 27).  ``valid [I]`` masks
-    targets out (their h counts as 0).  No target (I = 0) gives 0.  The caller drops τ₀ (C-000-10)."""
+    targets out (their h counts as 0). No target (I = 0) gives 0. The caller drops τ₀ (R is singular there; choice
+    SM-10)."""
     check_choice("aggregation", aggregation, AGGREGATIONS)
     h = jnp.asarray(h)
     if h.ndim < 2:
@@ -239,7 +243,7 @@ def sbmpc_costs(own_traj, target_trajs, t, *, aggregation: str = "max", kappa=DE
     Args:
         own_traj: ``[T, 4]`` own-ship states (x, y, χ, U) at times ``t``.
         target_trajs: ``[T, I, 4]`` target states (point targets, one trajectory each).
-        t: ``[T]`` times relative to τ₀ (``t[0] = 0`` = τ₀ is skipped: C-000-10).
+        t: ``[T]`` times relative to τ₀ (``t[0] = 0`` = τ₀ is skipped: R is singular there, choice SM-10).
         aggregation: ``"max"`` (eq. 2) or ``"sum"`` (eq. 27). kappa: COLREGS weight κ.
         valid: optional ``[I]`` target mask.
         **pair_kwargs: d_safe, K_coll, p, q, w_coll, d_cl, e_cl, eps, n_y, completion, risk, colregs
@@ -398,7 +402,8 @@ class SbmpcHazardTerm:
     the original SB-MPC pieces (3)-(10) (not smooth).  ``transitional=True`` adds the COLREGS-transitional
     term λ·T of eq. (11) (:func:`transitional_indicator`: the behaviour changes the passing side of a target
     in an overtaking / overtaken / crossing situation; it needs the rollout of the applied offsets, so the
-    evaluator computes ``Context.own_applied``); off by default (C-000-9).  Details: ``sbmpc_i [B, O, S]``."""
+    evaluator computes ``Context.own_applied``); off by default (λ = 0, as Mahipala & Johansen 2024 omit it; choice
+    SM-9). Details: ``sbmpc_i [B, O, S]``."""
 
     name = "sbmpc"
     PARAMS = ("d_safe", "K_coll", "p", "q", "w_coll", "kappa", "d_cl", "e_cl", "eps", "lambda_T")

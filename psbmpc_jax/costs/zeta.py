@@ -1,14 +1,15 @@
-"""The lower level of the two-level MPC (seed 001, SPEC_SEEDS §2.4): the SB-MPC hazard with the grounding cost ζ
-of eq. (15) joined per (time, target) inside the max (C-001-5), ``max_i max_t (C R + κ μ + ζ)``.
+"""The lower level of the two-level MPC (Mahipala & Johansen 2023, Sec. V): the SB-MPC hazard with the grounding cost
+ζ of eq. (15) joined per (time, target) inside the max (our reading TL-5, docs/algorithm.md §15), ``max_i max_t (C R +
+κ μ + ζ)``.
 
     ζ(d, t) = exp(−(η₁ |d − d_safe| + η₂ t))             if d ≤ d_close, else 0     (``shape="printed"``)
     ζ(d, t) = exp(−(η₁ (d − d_safe) + η₂ t)) for d ≥ d_safe, exp(−η₂ t)(1 + η₁ (d_safe − d)) below,
-              0 beyond d_close                                                    (``shape="psbmpc"``, C-001-6)
+              0 beyond d_close                                                    (``shape="psbmpc"``, TL-6)
 
 d: the own-ship's distance to land at each predicted step (0 inside land): the nearest-land distance grid in
 ``grounding_mode="grid"``, every polygon's exact distance otherwise.  t = τ − τ₀ [s].  The printed form peaks
-at d = d_safe and falls again deeper inside (the SPEC's note); the 003-style option keeps growing.  With no
-target (every target slot masked) the value is max_t ζ.
+at d = d_safe and falls again deeper inside (as printed, choice TL-6); the option shaped like the grounding cost of
+Tengesdal et al. (2022, eq. 16) keeps growing. With no target (every target slot masked) the value is max_t ζ.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from .colregs_fuzzy import check_choice, check_param
 from .sbmpc import SbmpcHazardTerm
 
 ZETA_SHAPES = ("printed", "psbmpc")
-#: SPEC §2.4 PROPOSED: η₁ = G3, η₂ = G4 of the library, d_close 50 m.
+#: Our proposal (the paper gives no values): η₁ = G3, η₂ = G4 of the library, d_close 50 m.
 DEFAULT_ETA1 = 0.25
 DEFAULT_ETA2 = 0.01
 DEFAULT_D_CLOSE = 50.0
@@ -30,7 +31,8 @@ DEFAULT_D_CLOSE = 50.0
 
 def zeta_cost(d, t, *, eta1=DEFAULT_ETA1, eta2=DEFAULT_ETA2, d_safe=10.0, d_close=DEFAULT_D_CLOSE,
               shape: str = "printed"):
-    """ζ(d, t) of eq. (15) (``shape="printed"``) or its 003-style variant (``"psbmpc"``); broadcast."""
+    """ζ(d, t) of eq. (15) (``shape="printed"``) or its variant shaped like Tengesdal et al. (2022, eq. 16)
+    (``"psbmpc"``); broadcast."""
     check_choice("shape", shape, ZETA_SHAPES)
     decay = jnp.exp(-eta2 * t)
     if shape == "printed":

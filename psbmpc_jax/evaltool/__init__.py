@@ -1,9 +1,9 @@
 """EvalTool: COLREGS compliance and safety scores of recorded ship encounters (pure NumPy, no JAX).
 
 An open reconstruction of the evaluation of Hagen, Vassbotn, Skogvold, Johansen and Brekke, "Safety and COLREG
-evaluation for marine collision avoidance algorithms", Ocean Engineering 288 (2023) 115991, following
-``SPEC_EVALTOOL.md`` (the formulas are rebuilt from published numbers and descriptions; no code of the original
-tool was used).  See ``docs/evaltool.md``.
+evaluation for marine collision avoidance algorithms", Ocean Engineering 288 (2023) 115991, from our written
+specification of the tool (the formulas are rebuilt from published numbers and descriptions; no code of the original
+tool was used). See ``docs/evaltool.md``.
 
     from psbmpc_jax.evaltool import Tracks, evaluate_tracks, evaluate_file, aggregate
     tr = Tracks.from_arrays(t, north, east, course, speed, names=["own", "ferry"])   # [V, n] arrays, SI

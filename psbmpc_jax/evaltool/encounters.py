@@ -1,4 +1,5 @@
-"""Encounter detection (SPEC_EVALTOOL §2.2) and the scoring of one encounter (SPEC §3).
+"""Encounter detection (``docs/evaltool.md``, "Pipeline" step 5) and the scoring of one encounter (same page, "Scores
+and penalties").
 
 :func:`find_windows` splits the samples of one ordered pair (i, j) into encounters: one per entry of the range
 into the stage-2 disc.  :func:`score_window` computes every applicable score of one encounter.
@@ -44,7 +45,7 @@ def _first(mask: np.ndarray, start: int) -> int:
 
 
 def find_windows(g: PairGeometry, u_i, u_j, i: int, j: int, p: EvalParams) -> list[Window]:
-    """Every encounter of i with j (SPEC §2.2): detection at each entry of the range into r_Stage2; the CPA
+    """Every encounter of i with j (Pipeline step 5): detection at each entry of the range into r_Stage2; the CPA
     window ends at the first sample where the range leaves r_Stage2 or both vessels have passed each other;
     the CPA is the minimum range in the window; the start is the first non-NAR sample in [k_d, k_c] (or k_d
     itself with ``scan_for_situation=False``)."""
@@ -115,12 +116,12 @@ def _rel_speed(ctx: PairContext, lo: int, hi: int, ref: int) -> np.ndarray:
 
 
 def _give_way_maneuver(ctx: PairContext) -> Maneuver | None:
-    """The first manoeuvre of the evaluated vessel overlapping [k_s, k_c] (SPEC §2.4)."""
+    """The first manoeuvre of the evaluated vessel overlapping [k_s, k_c] (Pipeline step 2)."""
     return next((m for m in ctx.maneuvers if m.overlaps(ctx.w.k_s, ctx.w.k_c)), None)
 
 
 def _give_way(ctx: PairContext, s_safety: float) -> tuple[dict, Maneuver | None, float | None]:
-    """P_delay, the non-apparent penalties and S16 (SPEC §3.2)."""
+    """P_delay, the non-apparent penalties and S16 (give-way vessel, Rules 8 and 16)."""
     p, w, r = ctx.p, ctx.w, ctx.g.r
     m = _give_way_maneuver(ctx)
     r_man = None if m is None else float(r[m.start])
@@ -136,7 +137,7 @@ def _give_way(ctx: PairContext, s_safety: float) -> tuple[dict, Maneuver | None,
 
 
 def _head_on(ctx: PairContext, gw: dict, m: Maneuver | None) -> dict:
-    """P_nsb, P_sts and S14 (SPEC §3.4)."""
+    """P_nsb, P_sts and S14 (Rule 14, head-on)."""
     p, w = ctx.p, ctx.w
     dev = _course_dev(ctx, w.k_s, w.k_c, w.k_s)
     nsb = sc.p_nsb(m is not None, max(0.0, float(dev.max())), max(0.0, float(-dev.min())), p)
@@ -146,8 +147,8 @@ def _head_on(ctx: PairContext, gw: dict, m: Maneuver | None) -> dict:
 
 
 def _stage(ctx: PairContext, x: int) -> dict:
-    """P_x and its parts for the stand-on vessel in stage x (SPEC §3.6); None entries if the encounter has
-    no sample in stage x."""
+    """P_x and its parts for the stand-on vessel in stage x (Rule 17, stand-on vessel); None entries if the encounter
+    has no sample in stage x."""
     p, w = ctx.p, ctx.w
     idx = w.k_s + np.flatnonzero(ctx.stage[w.k_s:w.k_c + 1] == x)
     keys = [f"P_{x}", f"P_{x}_delta_chi", f"P_{x}_delta_u_up", f"P_{x}_delta_u_down", f"C_{x}_gw"]
@@ -168,7 +169,7 @@ def _stage(ctx: PairContext, x: int) -> dict:
 
 def _port_turn(ctx: PairContext) -> bool:
     """A course manoeuvre overlapping stages 3–4 of [k_s, k_c] with a net port turn of at least Δχ_md, the
-    other vessel on the port side (β < 0) at its start (SPEC §3.6)."""
+    other vessel on the port side (β < 0) at its start (Rule 17, stand-on vessel)."""
     w = ctx.w
     idx = w.k_s + np.flatnonzero(ctx.stage[w.k_s:w.k_c + 1] >= 3)
     if idx.size == 0:
@@ -179,7 +180,7 @@ def _port_turn(ctx: PairContext) -> bool:
 
 
 def _stand_on(ctx: PairContext, s_safety: float) -> dict:
-    """The stage penalties, P_pt and S17 (SPEC §3.6)."""
+    """The stage penalties, P_pt and S17 (Rule 17, stand-on vessel)."""
     out = {**_stage(ctx, 2), **_stage(ctx, 3)}
     ppt = sc.p_port_turn(_port_turn(ctx), ctx.p)
     out["P_pt"] = ppt
@@ -201,7 +202,7 @@ def _status(ctx: PairContext, dcpa_start: float) -> str:
 
 
 def score_window(ctx: PairContext, names, t, dcpa_start: float) -> Encounter:
-    """Score one encounter (every applicable score of SPEC §3; None for the rest)."""
+    """Score one encounter (every applicable score; None for the rest)."""
     w, g = ctx.w, ctx.g
     status = _status(ctx, dcpa_start)
     vals: dict = {}

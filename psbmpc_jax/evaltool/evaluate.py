@@ -24,7 +24,7 @@ def _pairs(n_vessels: int, own: int, mode: str) -> list[tuple[int, int]]:
 
 def evaluate_tracks(tracks: Tracks, params: EvalParams | str | None = "default", *, own=None,
                     pairs: str = "own", **overrides) -> Evaluation:
-    """Score every encounter in ``tracks`` (SPEC_EVALTOOL §2–§3).
+    """Score every encounter in ``tracks`` (``docs/evaltool.md``, "What is computed").
 
     Args:
         tracks: the recorded tracks (:class:`Tracks`; uniform or not in time: they are resampled onto a grid

@@ -1,7 +1,8 @@
 """Pair geometry (range, relative bearing β, contact angle α), stages and the COLREGS classification
-(SPEC_EVALTOOL §1, §2.1, §2.3), vectorised over the samples of a pair of vessels.
+(``docs/evaltool.md``, "Pipeline" steps 3, 4 and 6), vectorised over the samples of a pair of vessels.
 
-Angles are starboard-positive and wrapped to (−π, π] (the SPEC's convention, §1 and §7.1).
+Angles are starboard-positive and wrapped to (−π, π] (as in Woerner's and the tool's own code; ``docs/evaltool.md``,
+choice 17).
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from .params import EvalParams
 __all__ = ["wrap", "PairGeometry", "pair_geometry", "stages", "classify", "SITUATIONS", "GIVE_WAY", "STAND_ON",
            "both_passed"]
 
-#: Situation codes (SPEC §2.3): i overtaken (stand-on), i overtaking (give-way), head-on, crossing give-way,
+#: Situation codes (Pipeline step 6): i overtaken (stand-on), i overtaking (give-way), head-on, crossing give-way,
 #: crossing stand-on, no applicable rule.
 SITUATIONS = ("OTSO", "OTGW", "HO", "CRGW", "CRSO", "NAR")
 #: Situations in which the evaluated vessel has a give-way role (HO: both give way).
@@ -47,7 +48,7 @@ class PairGeometry:
 
 
 def pair_geometry(north, east, course, speed, i: int, j: int, p: EvalParams) -> PairGeometry:
-    """Range, β and α of vessel ``i`` against ``j`` from ``[V, n]`` arrays (SPEC §1)."""
+    """Range, β and α of vessel ``i`` against ``j`` from ``[V, n]`` arrays (Pipeline step 3)."""
     dn, de = north[j] - north[i], east[j] - east[i]
     r = np.hypot(dn, de)
     los = np.arctan2(de, dn)                                       # bearing i -> j
@@ -58,14 +59,14 @@ def pair_geometry(north, east, course, speed, i: int, j: int, p: EvalParams) -> 
 
 
 def stages(r, p: EvalParams) -> np.ndarray:
-    """Stage 1–4 of every sample from the range alone (SPEC §2.1)."""
+    """Stage 1–4 of every sample from the range alone (Pipeline step 4)."""
     r = np.asarray(r, float)
     return (1 + (r <= p.r_stage2_m).astype(int) + (r <= p.r_stage3_m) + (r <= p.r_stage4_m)).astype(int)
 
 
 def classify(alpha, beta, u_i, u_j, p: EvalParams) -> np.ndarray:
     """The situation of i towards j per sample (array of :data:`SITUATIONS` strings), first match wins in
-    the order OTSO, OTGW, HO, CRGW, CRSO, else NAR ([WOE]/[LIN], SPEC §2.3)."""
+    the order OTSO, OTGW, HO, CRGW, CRSO, else NAR ([WOE]/[LIN], Pipeline step 6)."""
     a, b = np.degrees(np.asarray(alpha, float)), np.degrees(np.asarray(beta, float))
     a360, b360 = np.mod(a, 360.0), np.mod(b, 360.0)
     u_i, u_j = np.asarray(u_i, float), np.asarray(u_j, float)
@@ -89,6 +90,6 @@ def classify(alpha, beta, u_i, u_j, p: EvalParams) -> np.ndarray:
 
 def both_passed(alpha, beta, p: EvalParams) -> np.ndarray:
     """True where each vessel lies more than 22.5° abaft the other's beam (|β| and |α| > θ_OT,min) ([LIN],
-    SPEC §2.2)."""
+    Pipeline step 5)."""
     lim = p.rad("theta_ot_min")
     return (np.abs(np.asarray(beta, float)) > lim) & (np.abs(np.asarray(alpha, float)) > lim)

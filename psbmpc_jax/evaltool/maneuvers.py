@@ -1,5 +1,5 @@
-"""Manoeuvre detection: when a vessel changed course or speed (SPEC_EVALTOOL §2.4, the tool's own ``VesselData``
-event detector, [LIN]).
+"""Manoeuvre detection: when a vessel changed course or speed (``docs/evaltool.md``, "Pipeline" step 2; the tool's own
+``VesselData`` event detector, [LIN]).
 
 Course (unwrapped) and speed are smoothed with a Gaussian filter (σ in samples), differentiated by central
 differences (per second, so the thresholds keep their units whatever the sample interval), and thresholded:

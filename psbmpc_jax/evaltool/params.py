@@ -2,13 +2,14 @@
 
 Every field carries its unit in its name (``_m``, ``_deg``, ``_mps`` ...); angles are given in degrees here, at
 the boundary, and converted to radians once where they are used.  The defaults are those of
-``/work/shared/SPEC_EVALTOOL.md`` §4 (the ``evaluator.yaml`` of the original tool, tagged [CFG] there), except
-the sampling interval, which follows the SPEC's recommendation of 1 s (§1, §4.1, §7.12).
+the ``evaluator.yaml`` of the original tool (tagged [CFG]; the tags are explained in ``docs/evaltool.md``), except the
+sampling interval: 1 s instead of the yaml's 2 s, so that per-sample and per-second rates agree (``docs/evaltool.md``,
+"Choices made where our specification is ambiguous", item 1).
 
 Presets:
 
-* ``default``: the SPEC's defaults (open-water ranges of the original tool's configuration file).
-* ``inland_small``: the twelve values of Table V of the Smooth-SBMPC paper (seed 000: 80/45/16 m stages,
+* ``default``: the yaml's defaults (open-water ranges of the original tool's configuration file).
+* ``inland_small``: the twelve values of Table V of the Smooth-SBMPC paper (Mahipala & Johansen 2024: 80/45/16 m stages,
   7/6/5/4 m CPA ranges, ε_U 0.2 m/s, Δχ_ap 13°, Δχ_md 1°, ΔU_ap 0.2, ΔU_md 0.1), everything else default.
 """
 
@@ -21,19 +22,20 @@ from dataclasses import dataclass, fields
 __all__ = ["EvalParams", "PRESETS", "get_params", "preset_names", "STAND_ON_MODES", "DELAY_REFERENCES",
            "RANGE_FIELDS", "scaled_params"]
 
-#: Allowed values of :attr:`EvalParams.stand_on_mode` (SPEC §3.6, §7.5).
+#: Allowed values of :attr:`EvalParams.stand_on_mode` (Rule 17, stand-on vessel; ``docs/evaltool.md``, choice 13).
 STAND_ON_MODES = ("reproduce", "intended")
-#: Allowed values of :attr:`EvalParams.delay_reference` (SPEC §3.2, §7.3).
+#: Allowed values of :attr:`EvalParams.delay_reference` (give-way vessel, Rules 8 and 16; ``docs/evaltool.md``, choice
+#: 14).
 DELAY_REFERENCES = ("encounter_start", "stage3")
 
 
 @dataclass(frozen=True)
 class EvalParams:
-    """All parameters of the evaluation (SPEC_EVALTOOL §4; yaml key in brackets).
+    """All parameters of the evaluation (``docs/evaltool.md``, "Parameters"; yaml key in brackets).
 
-    Sampling and manoeuvre detection (SPEC §1, §2.4):
+    Sampling and manoeuvre detection:
         sample_interval_s: Δt of the common grid every vessel is resampled onto [s] (``sample_interval``; the
-            yaml has 2.0 s, the SPEC recommends 1.0 s so that per-sample and per-second rates agree).
+            yaml has 2.0 s; we use 1.0 s so that per-sample and per-second rates agree).
         epsilon_speed_mps: ε_U, below this speed a vessel is "not moving" and no course manoeuvre starts
             (``epsilon_speed``).
         epsilon_d_course_deg_s: ε_dχ, course-rate threshold of a course manoeuvre (``epsilon_d_course``).
@@ -43,27 +45,27 @@ class EvalParams:
         course_end_below_threshold: also end a course manoeuvre when |χ'| < ε_dχ ([REC] for noise-free data;
             False gives the tool's rule: end on a sign change of the rate or two exact zeros only).
 
-    Stages and CPA ranges (SPEC §2.1, §3.1):
+    Stages and CPA ranges:
         r_stage2_m, r_stage3_m, r_stage4_m: stage radii (``r_colregs_{2,3,4}_max``), r2 > r3 > r4 > 0.
         r_pref_m, r_min_m, r_nm_m, r_col_m: preferred / minimum / near-miss / collision CPA ranges,
             r_pref > r_min > r_nm > r_col >= 0.
 
-    Manoeuvre size (SPEC §2.5):
+    Manoeuvre size:
         delta_course_md_deg, delta_course_app_deg: minimum detectable and readily apparent course change.
         delta_speed_md_rel, delta_speed_app_rel: the same for the relative speed change (fraction of the speed
             at the reference sample).
 
-    Classification (SPEC §2.3):
+    Classification:
         theta_crit_ot_deg, theta_crit_ho_deg, theta_crit_cr_deg, theta_ot_min_deg, theta_ot_max_deg: the
             sector limits of Woerner's Algorithm 5 (starboard-positive angles).
         overtaking_speed_margin_mps: the overtaking speed tests need U_i > U_j + margin (resp. U_i + margin <
-            U_j); Hagen's AIS code used 0.2 m/s, the SPEC's default is 0.
+            U_j); Hagen's AIS code used 0.2 m/s, our default is 0.
         scan_for_situation: True: the encounter starts at the first sample after detection whose geometry is
             not NAR ([REC]); False: classify at the detection sample only ([LIN]).
         stationary_contact_angle_deg: contact angle α used when the other vessel is not moving (Hagen's code:
             180°).
 
-    Penalty bands and weights (SPEC §3):
+    Penalty bands and weights:
         theta_sm_deg: θ_SM, starboard turn that clears P_nsb.
         alpha_ahead_cr_min_deg, alpha_ahead_cr_max_deg: P_ah15 band of the contact angle at CPA.
         alpha_ahead_ot_absmax_deg: P_ah13 band |α_c| < this.
@@ -74,13 +76,13 @@ class EvalParams:
         gamma_so_delta_chi, gamma_so_delta_u_up, gamma_so_delta_u_down: stand-on stage penalty weights;
         gamma_c: give-way compensation C_x,gw; gamma_pt: port-turn penalty of the stand-on vessel.
 
-    Choices where the sources disagree (SPEC §7):
+    Choices where the sources disagree (``docs/evaltool.md``, "Choices made where our specification is ambiguous"):
         stand_on_mode: ``"reproduce"`` (P_x = man_x·min(1, Σ + C), fits the SBMPC Table VII) or ``"intended"``
             (P_x = man_x·max(0, Σ − C)).
         delay_reference: ``"encounter_start"`` (P_delay = (r_det − r_man)/(r_det − r_cpa), Woerner) or
             ``"stage3"`` ((r_Stage3 − r_man)/(r_Stage3 − r_cpa)).
         risk_gate: skip the COLREG scores of an encounter whose constant-velocity DCPA at its start is at least
-            r_pref ([REC], off by default: SPEC §7.13).
+            r_pref ([REC], off by default: no source gates by risk; choice 16).
     """
 
     sample_interval_s: float = 1.0
@@ -220,7 +222,7 @@ def _validate(p: EvalParams) -> None:
 
 
 # --------------------------------------------------------------------------------------------------- presets
-#: The Smooth-SBMPC paper's Table V (seed 000): the twelve values it changed from the tool's defaults.
+#: The Smooth-SBMPC paper's Table V (Mahipala & Johansen 2024): the twelve values it changed from the tool's defaults.
 INLAND_SMALL_CHANGES = dict(
     r_stage2_m=80.0, r_stage3_m=45.0, r_stage4_m=16.0,
     r_pref_m=7.0, r_min_m=6.0, r_nm_m=5.0, r_col_m=4.0,

@@ -28,8 +28,8 @@ class EncounterScores:
     """Every score (S) and penalty (P) of one encounter, in [0, 1]; None where it does not apply.
 
     ``S_sit`` is the situation score: S13 (overtaking, either role), S14 (head-on) or S15 (crossing, either
-    role).  Naming follows SPEC_EVALTOOL §3.7: ``P_na_delta`` = P_Δ^¬ap, ``P_na_delta_chi`` = P_Δχ^¬ap,
-    ``P_na_delta_u`` = P_ΔU^¬ap; ``P_x``, ``P_x_delta_chi``, ``P_x_delta_u_up``, ``P_x_delta_u_down`` and
+    role). Naming (``docs/evaltool.md``, "Scores and penalties"): ``P_na_delta`` = P_Δ^¬ap, ``P_na_delta_chi`` =
+    P_Δχ^¬ap, ``P_na_delta_u`` = P_ΔU^¬ap; ``P_x``, ``P_x_delta_chi``, ``P_x_delta_u_up``, ``P_x_delta_u_down`` and
     ``C_x_gw`` for the stand-on stages x = 2, 3; ``P_pt`` the stand-on port-turn penalty.
     """
 

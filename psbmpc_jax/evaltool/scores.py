@@ -1,10 +1,10 @@
-"""The scores and penalties of the EvalTool as plain functions (SPEC_EVALTOOL §3).
+"""The scores and penalties of the EvalTool as plain functions (``docs/evaltool.md``, "Scores and penalties").
 
 Every function is pure and takes numbers (radians for angles, metres for ranges, fractions for relative speed
 changes) plus, where needed, an :class:`~psbmpc_jax.evaltool.params.EvalParams`.  The functions that map a
 quantity through a fixed curve (:func:`range_score`, :func:`pose_score`, :func:`p_sts`, :func:`ramp` ...) accept
-NumPy arrays as well.  Every result lies in [0, 1].  The SPEC's certainty tag of each formula is in its
-docstring.
+NumPy arrays as well. Every result lies in [0, 1]. The certainty tag of each formula ([PUB], [CFG], [LIN], [WOE],
+[REC]: ``docs/evaltool.md``, "Provenance and licence") is in its docstring.
 """
 
 from __future__ import annotations
@@ -21,14 +21,14 @@ __all__ = ["ramp", "range_score", "angle_score", "pose_score", "safety_score", "
 
 
 def ramp(x, lo: float, hi: float):
-    """ramp(x; lo, hi) = clip((x − lo)/(hi − lo), 0, 1) (SPEC §2.5)."""
+    """ramp(x; lo, hi) = clip((x − lo)/(hi − lo), 0, 1) (manoeuvre magnitudes)."""
     return np.clip((np.asarray(x, float) - lo) / (hi - lo), 0.0, 1.0)[()]
 
 
 # ------------------------------------------------------------------------------------------ safety at CPA
 def range_score(r_cpa, p: EvalParams):
     """S_r: four linear pieces from 1 at r_pref to 0 at r_col, slopes set by γ_min, γ_nm, γ_col
-    ([CFG] weights, structure consistent with [PUB]; SPEC §3.1)."""
+    ([CFG] weights, structure consistent with [PUB]; safety at CPA)."""
     r = np.asarray(r_cpa, float)
     s = (1.0 - p.gamma_min * ramp(p.r_pref_m - r, 0.0, p.r_pref_m - p.r_min_m)
          - p.gamma_nm * ramp(p.r_min_m - r, 0.0, p.r_min_m - p.r_nm_m)
@@ -38,14 +38,14 @@ def range_score(r_cpa, p: EvalParams):
 
 
 def angle_score(angle, cut: float):
-    """S_α or S_β: (1 − cos a)/(1 − cos a_cut) if |a| < a_cut, else 1 ([CFG] cut form, SPEC §3.1)."""
+    """S_α or S_β: (1 − cos a)/(1 − cos a_cut) if |a| < a_cut, else 1 ([CFG] cut form, safety at CPA)."""
     a = np.asarray(angle, float)
     s = np.where(np.abs(a) < cut, (1.0 - np.cos(a)) / (1.0 - math.cos(cut)), 1.0)
     return np.clip(s, 0.0, 1.0)[()]
 
 
 def pose_score(alpha_c, beta_c, p: EvalParams):
-    """(S_Θ, S_α, S_β) with S_Θ = γ_α·S_α + γ_β·S_β ([CFG], SPEC §3.1)."""
+    """(S_Θ, S_α, S_β) with S_Θ = γ_α·S_α + γ_β·S_β ([CFG], safety at CPA)."""
     s_a = angle_score(alpha_c, p.rad("alpha_cut"))
     s_b = angle_score(beta_c, p.rad("beta_cut"))
     return float(np.clip(p.gamma_alpha * s_a + p.gamma_beta * s_b, 0.0, 1.0)), float(s_a), float(s_b)
@@ -64,7 +64,8 @@ def safety_score(s_r: float, s_theta: float, collided: bool = False) -> float:
 # ------------------------------------------------------------------------------------------ give-way vessel
 def p_delay(r_det: float, r_man: float | None, r_cpa: float) -> float:
     """P_delay = 1 without a manoeuvre, else clip((r_det − r_man)/(r_det − r_cpa), 0, 1); 0 when
-    r_det − r_cpa ≤ 0 ([WOE]/[LIN], SPEC §3.2).  With the ``stage3`` reference pass r_Stage3 as ``r_det``."""
+    r_det − r_cpa ≤ 0 ([WOE]/[LIN], give-way vessel, Rules 8 and 16). With the ``stage3`` reference pass r_Stage3 as
+    ``r_det``."""
     if r_man is None:
         return 1.0
     den = r_det - r_cpa
@@ -75,7 +76,7 @@ def p_delay(r_det: float, r_man: float | None, r_cpa: float) -> float:
 
 def f_course(delta_chi: float, p: EvalParams) -> float:
     """f_χ: 0 below Δχ_md, 1 − ((Δχ − Δχ_md)/(Δχ_ap − Δχ_md))² in between, 0 from Δχ_ap
-    ([REC], SPEC §3.2)."""
+    ([REC], give-way vessel, Rules 8 and 16)."""
     md, ap = p.rad("delta_course_md"), p.rad("delta_course_app")
     if delta_chi < md or delta_chi >= ap:
         return 0.0
@@ -83,7 +84,8 @@ def f_course(delta_chi: float, p: EvalParams) -> float:
 
 
 def f_speed(delta_u_rel: float, p: EvalParams) -> float:
-    """f_U: 0 below ΔU_md, 1 − (ΔU − ΔU_md)/(ΔU_ap − ΔU_md) in between, 0 from ΔU_ap ([REC], SPEC §3.2)."""
+    """f_U: 0 below ΔU_md, 1 − (ΔU − ΔU_md)/(ΔU_ap − ΔU_md) in between, 0 from ΔU_ap ([REC], give-way vessel, Rules 8
+    and 16)."""
     md, ap = p.delta_speed_md_rel, p.delta_speed_app_rel
     if delta_u_rel < md or delta_u_rel >= ap:
         return 0.0
@@ -92,8 +94,8 @@ def f_speed(delta_u_rel: float, p: EvalParams) -> float:
 
 def non_apparent(delta_chi: float, delta_u_rel: float, p: EvalParams) -> tuple[float, float, float]:
     """(P_Δ^¬ap, P_Δχ^¬ap, P_ΔU^¬ap) for the give-way vessel's largest course deviation ``delta_chi`` [rad]
-    and largest relative speed reduction ``delta_u_rel`` ([REC], SPEC §3.2): the components are γ·f; the total
-    is 0 when either change is apparent, otherwise min(1, sum)."""
+    and largest relative speed reduction ``delta_u_rel`` ([REC], give-way vessel, Rules 8 and 16): the components are
+    γ·f; the total is 0 when either change is apparent, otherwise min(1, sum)."""
     pc = p.gamma_na_delta_chi * f_course(delta_chi, p)
     pu = p.gamma_na_delta_u * f_speed(delta_u_rel, p)
     apparent = delta_chi >= p.rad("delta_course_app") or delta_u_rel >= p.delta_speed_app_rel
@@ -108,13 +110,13 @@ def s16(s_safety: float, p_delay_: float, p_na: float) -> float:
 # ------------------------------------------------------------------------------------------------ head-on
 def p_sts(alpha_c, beta_c):
     """P_sts = 1 − [¼(1 − sin α_c)(1 − sin β_c)]²: 0 for port-to-port (−90°, −90°), 1 for
-    starboard-to-starboard ([LIN] form, magnitude consistent with [PUB]; SPEC §3.4)."""
+    starboard-to-starboard ([LIN] form, magnitude consistent with [PUB]; Rule 14, head-on)."""
     a, b = np.asarray(alpha_c, float), np.asarray(beta_c, float)
     return np.clip(1.0 - (0.25 * (1.0 - np.sin(a)) * (1.0 - np.sin(b))) ** 2, 0.0, 1.0)[()]
 
 
 def p_nsb(maneuvered: bool, turn_starboard: float, turn_port: float, p: EvalParams) -> float:
-    """P_nsb from the largest starboard (Δχ⁺) and port (Δχ⁻) course deviations [rad] ([REC], SPEC §3.4):
+    """P_nsb from the largest starboard (Δχ⁺) and port (Δχ⁻) course deviations [rad] ([REC], Rule 14, head-on):
     0 without a manoeuvre; 1 for a mainly-port turn of at least θ_SM; else clip(1 − Δχ⁺/θ_SM, 0, 1)."""
     if not maneuvered:
         return 0.0
@@ -138,25 +140,25 @@ def p_ah13(alpha_c: float, p: EvalParams) -> float:
 
 
 def s13_give_way(s16_: float, p_ah13_: float, p: EvalParams) -> float:
-    """OTGW: S13 = max(0, S16 − γ_ah,OT·P_ah13) ([LIN]/[CFG], SPEC §3.3)."""
+    """OTGW: S13 = max(0, S16 − γ_ah,OT·P_ah13) ([LIN]/[CFG], Rule 13, overtaking)."""
     return float(np.clip(s16_ - p.gamma_ahead_ot * p_ah13_, 0.0, 1.0))
 
 
 def p_ah15(alpha_c: float, p: EvalParams) -> float:
     """P_ah15 = 1 if α_ah,min < α_c < α_ah,max (the give-way vessel crossed the stand-on vessel's bow)
-    ([WOE]/[CFG]/[LIN], SPEC §3.5)."""
+    ([WOE]/[CFG]/[LIN], Rule 15, crossing)."""
     return 1.0 if p.rad("alpha_ahead_cr_min") < alpha_c < p.rad("alpha_ahead_cr_max") else 0.0
 
 
 def s15_give_way(s16_: float, p_ah15_: float, p: EvalParams) -> float:
-    """CRGW: S15 = max(0, S16 − γ_ah,CR·P_ah15) ([CFG], SPEC §3.5)."""
+    """CRGW: S15 = max(0, S16 − γ_ah,CR·P_ah15) ([CFG], Rule 15, crossing)."""
     return float(np.clip(s16_ - p.gamma_ahead_cr * p_ah15_, 0.0, 1.0))
 
 
 # ------------------------------------------------------------------------------------------ stand-on vessel
 def stage_penalty(maneuvered: bool, p_chi: float, p_u_up: float, p_u_down: float, compensation: float,
                   p: EvalParams) -> float:
-    """P_x of a stand-on stage (SPEC §3.6):
+    """P_x of a stand-on stage (Rule 17, stand-on vessel):
     man_x·min(1, γ_Δχ·P_Δχ + γ_ΔU↑·P_ΔU↑ + γ_ΔU↓·P_ΔU↓ + C) in ``reproduce`` mode ([PUB] fit of Table VII),
     man_x·max(0, … − C) in ``intended`` mode."""
     if not maneuvered:

@@ -1,6 +1,6 @@
 """Scripted trajectories for checks and examples: vessels that follow piecewise-linear course profiles at constant
 (or piecewise-linear) speed, integrated exactly enough (trapezoidal rule on a fine grid) for the geometric
-numbers of SPEC_EVALTOOL §6 to hold to about 0.01 m."""
+numbers of the scripted test cases T1–T7 (``docs/evaltool.md``, "Scripted scenarios") to hold to about 0.01 m."""
 
 from __future__ import annotations
 

@@ -46,12 +46,12 @@ class SbmpcSettings:
 
     Attributes:
         d_safe: safety-zone radius [m] (bare, no ship-size addition; Table 1: 40 m).
-        K_coll: collision-cost weight of C = K_coll‖v_o − v_i‖² [(s/m)²] (NOT GIVEN; proposed 1).
+        K_coll: collision-cost weight of C = K_coll‖v_o − v_i‖² [(s/m)²] (not in the paper; our proposal 1).
         p, q: exponents of the ad hoc risk R (SB-MPC only; "typical" 1 and 4).
         kappa: COLREGS weight κ (Table 1: 10).
         lambda_T: weight λ of the COLREGS-transitional term of Johansen et al. 2016 eq. (11) (``sbmpc``; 0 = off,
             our choice; the papers give no value).
-        d_cl: COLREGS range of the Boolean indicator [m] (NOT GIVEN; proposed 200).
+        d_cl: COLREGS range of the Boolean indicator [m] (not in the paper; our proposal 200).
         k_U, Delta_U: speed-reduction weight K_u and speed-change weight K_Δu (Table 1: 9, 8).
         k_chi_port, k_chi_stbd: course-offset weights K_χ [rad⁻²] (Table 1: 1.8, 1.5).
         Delta_chi_port, Delta_chi_stbd: course-change weights K_Δχ [rad⁻²] (Table 1: 1.2, 0.9); the side is the

@@ -1,4 +1,5 @@
-"""Generic jitted constrained solver for small smooth problems (the library solver of the DOCP, SPEC §1.6).
+"""Generic jitted constrained solver for small smooth problems (the solver of the Smooth-SBMPC DOCP, eq. 27 of
+Mahipala & Johansen 2024, which names none; docs/solver.md).
 
     from psbmpc_jax.nlp import SolverSettings, solve_docp, solve_multistart, safeguard
     res = solve_docp(f, u0, lower=lo, upper=hi, eq=eq, ineq=ineq, settings=SolverSettings(), args=data)

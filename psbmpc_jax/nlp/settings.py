@@ -23,13 +23,18 @@ from typing import NamedTuple
 import jax
 import numpy as np
 
-#: Status codes of :class:`SolverResult` (``result.status``).
-CONVERGED = 0     #: max violation <= tol and relative change of f between outer iterations <= rel_tol
-MAX_ITER = 1      #: outer budget spent; the final iterate is feasible (violation <= tol) but not converged
-INFEASIBLE = 2    #: outer budget spent with violation > tol (or an empty box, some lower > upper)
-NON_FINITE = 3    #: f, a constraint or a gradient became NaN/inf; u is the last iterate with finite values
+from ..status import STATUS_NAMES, Status
 
-STATUS_NAMES = {CONVERGED: "converged", MAX_ITER: "max-iter", INFEASIBLE: "infeasible", NON_FINITE: "non-finite"}
+#: Status codes of :class:`SolverResult` (``result.status``), from the library's one status enum
+#: (:class:`psbmpc_jax.status.Status`; :data:`STATUS_NAMES` names every code).
+#: max violation <= tol and relative change of f between outer iterations <= rel_tol
+CONVERGED = int(Status.OK)
+#: outer budget spent; the final iterate is feasible (violation <= tol) but not converged
+MAX_ITER = int(Status.MAX_ITER)
+#: outer budget spent with violation > tol (or an empty box, some lower > upper)
+INFEASIBLE = int(Status.INFEASIBLE)
+#: f, a constraint or a gradient became NaN/inf; u is the last iterate with finite values
+NON_FINITE = int(Status.NON_FINITE)
 
 METHODS = ("lbfgs", "adam")
 BOX_MAPS = ("sin", "tanh")
@@ -41,7 +46,8 @@ _NUMERIC = ("tol", "rel_tol", "grad_tol", "mu0", "growth", "mu_max", "decrease",
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class SolverSettings:
-    """Settings of :func:`psbmpc_jax.nlp.solve_docp` (defaults = the PROPOSED library solver of SPEC §1.6).
+    """Settings of :func:`psbmpc_jax.nlp.solve_docp` (defaults: our proposal, since Mahipala & Johansen 2024 name no
+    solver; ``docs/solver.md``).
 
     Static (recompile when changed):
         max_outer: augmented-Lagrangian (outer) iterations, >= 1.  Default 20.
@@ -186,8 +192,8 @@ class SolverResult(NamedTuple):
         u: the solution, u0's shape, inside the box.
         f: f(u, args).
         max_violation: max(|eq(u)|, max(ineq(u), 0), box violation of u) (0-d).
-        status: int32 code -- 0 converged, 1 max-iter (feasible, not converged), 2 infeasible,
-            3 non-finite (see :data:`STATUS_NAMES`).
+        status: int32 code -- 0 ok (converged), 3 max-iter (feasible, not converged), 4 infeasible,
+            5 non-finite (:class:`psbmpc_jax.status.Status`).
         outer_iterations: augmented-Lagrangian iterations used (int32).
         inner_iterations: inner iterations used, summed over outer iterations (int32).
         lam_eq: multipliers of the equalities ``[m_e]`` (after the last update).

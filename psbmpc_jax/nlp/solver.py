@@ -316,7 +316,7 @@ def solve_docp(f: Callable, u0, *, lower, upper, eq: Callable | None = None, ine
         args: pytree of data passed to f, eq and ineq.
 
     Returns:
-        :class:`SolverResult` (status 0 converged, 1 max-iter, 2 infeasible, 3 non-finite).
+        :class:`SolverResult` (status 0 ok/converged, 3 max-iter, 4 infeasible, 5 non-finite).
     """
     _check_settings(settings)
     u0, lower, upper, args = _prepare(u0, lower, upper, args)

@@ -417,7 +417,7 @@ def course_rate(t, chi):
 
 
 def voyage_metrics(t, own, route, arrival_radius=None) -> dict:
-    """The voyage of the own-ship (seed 000, Table X): from the start to the first sample within
+    """The voyage of the own-ship (Mahipala & Johansen 2024, Table X): from the start to the first sample within
     ``arrival_radius`` of the last waypoint, or the whole run when it never gets there.
 
     Returns ``arrived`` (bool), ``voyage_time_s`` (time of that first sample minus ``t[0]``; None when it never

@@ -210,7 +210,8 @@ def plot_course_speed(result, run: int = 0, axes=None):
 
 def plot_course_speed_compare(results, run: int = 0, labels=None, axes=None):
     """The own-ship's course and speed over time in several simulations of the same scenario, overlaid -- e.g.
-    the same file run with ``--method smooth_sbmpc`` and ``--method sbmpc_init`` (seed 000, Fig. 15 style).
+    the same file run with ``--method smooth_sbmpc`` and ``--method sbmpc_init`` (in the style of Fig. 15 of Mahipala
+    & Johansen 2024).
 
     Args:
         results: :class:`~psbmpc_jax.sim.SimulationResult` s, or a mapping label -> result.

@@ -285,8 +285,8 @@ class _ClosedLoop:
         self.absolute = np.zeros((R, n), bool)          # ships commanded by absolute (U, chi) (two_level)
         self.cmd_U, self.cmd_chi = np.zeros((R, n)), np.zeros((R, n))
         self.rngs = [np.random.default_rng([int(seed), r]) for r in range(R)]
-        # route exchange (seed 002): the segment of the last plan each run received from each ship (-1: none),
-        # the plans published but not yet due (delay), and the dropout draws (their own streams)
+        # route exchange (Akdağ, Fossen & Johansen 2022): the segment of the last plan each run received from each
+        # ship (-1: none), the plans published but not yet due (delay), and the dropout draws (their own streams)
         self.received_seg = np.full((R, n), -1, dtype=np.int64)
         self.plan_queue: list[tuple[float, np.ndarray, np.ndarray]] = []
         self.exchange_rngs = [np.random.default_rng([int(seed), r, 2002]) for r in range(R)]

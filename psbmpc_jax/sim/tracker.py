@@ -1,6 +1,7 @@
-"""Constant-velocity Kalman filter for target tracking in the closed-loop simulator (seed 004, §2.2 and §7).
+"""Constant-velocity Kalman filter for target tracking in the closed-loop simulator (Tengesdal, Brekke & Johansen
+2020, Secs. 2.2 and 7).
 
-Model (seed 004 eqs. (3)-(7)), NED frame, SI units::
+Model (Tengesdal, Brekke & Johansen 2020, eqs. (3)-(7)), NED frame, SI units::
 
     x = [north, east, V_north, V_east]        (m, m, m/s, m/s)
     x_{k+1} = F x_k + v_k,   v_k ~ N(0, Q)       (discretised white-noise acceleration, "CV model")
@@ -12,16 +13,16 @@ Model (seed 004 eqs. (3)-(7)), NED frame, SI units::
 ``sigma_a`` [m/s²] is the process-noise strength (the spectral density of the acceleration is sigma_a²), chosen
 from the expected manoeuvrability of the vessel; ``dt`` may vary between steps.
 
-Track initiation is single-point (Mallick & Scala 2008, as used in seed 004 §7): the first measurement gives the
-position, the velocity starts at zero, and the prior covariance is ``blockdiag(R, (U_max / kappa)² I2)`` where
-``U_max`` is the (a-priori known) maximum target speed. ``kappa`` says how many standard deviations U_max spans
-in each velocity component; with U_max = 9 m/s and kappa = 2 the initial velocity variance is 20.25 (m/s)², the
-"velocity variance surpassing 20 (m/s)² initially" of seed 004.
+Track initiation is single-point (Mallick & Scala 2008, as used in Tengesdal, Brekke & Johansen 2020, Sec. 7): the
+first measurement gives the position, the velocity starts at zero, and the prior covariance is ``blockdiag(R, (U_max /
+kappa)² I2)`` where ``U_max`` is the (a-priori known) maximum target speed. ``kappa`` says how many standard
+deviations U_max spans in each velocity component; with U_max = 9 m/s and kappa = 2 the initial velocity variance is
+20.25 (m/s)², the "velocity variance surpassing 20 (m/s)² initially" of Tengesdal, Brekke & Johansen (2020).
 
-Conservative tuning (seed 004 §7): to mimic unreliable radar in bad weather and to allow fast manoeuvres, the
-filter in the simulations uses a measurement covariance 25 times the true one (true R = diag(25, 25) m², so the
-filter R = diag(625, 625) m²) and sigma_a = 0.5 m/s² for every target — see ``CONSERVATIVE_R_FACTOR`` and
-``CONSERVATIVE_SIGMA_A``. This makes the estimates (and the velocity/course in particular) markedly uncertain,
+Conservative tuning (Tengesdal, Brekke & Johansen 2020, Sec. 7): to mimic unreliable radar in bad weather and to allow
+fast manoeuvres, the filter in the simulations uses a measurement covariance 25 times the true one (true R = diag(25,
+25) m², so the filter R = diag(625, 625) m²) and sigma_a = 0.5 m/s² for every target — see ``CONSERVATIVE_R_FACTOR``
+and ``CONSERVATIVE_SIGMA_A``. This makes the estimates (and the velocity/course in particular) markedly uncertain,
 which is what the probabilistic collision cost of the PSB-MPC is meant to account for.
 
 All functions are pure numpy (float64) and broadcast over any leading batch axes ``...`` (e.g. [runs, targets]):
@@ -47,14 +48,15 @@ __all__ = [
     "TrackerBank",
 ]
 
-#: Seed 004 §7: the filter's measurement covariance is this many times the true one (conservative tuning).
+#: Tengesdal, Brekke & Johansen 2020, Sec. 7: the filter's measurement covariance is this many times the true one
+#: (conservative tuning).
 CONSERVATIVE_R_FACTOR = 25.0
-#: Seed 004 §7: process-noise strength of the conservatively tuned filter [m/s²].
+#: Tengesdal, Brekke & Johansen 2020, Sec. 7: process-noise strength of the conservatively tuned filter [m/s²].
 CONSERVATIVE_SIGMA_A = 0.5
 #: Default number of standard deviations that U_max spans in each velocity component at initiation.
 DEFAULT_KAPPA = 2.0
 
-#: Measurement matrix (seed 004 eq. (6)): position is measured.
+#: Measurement matrix (Tengesdal, Brekke & Johansen 2020, eq. (6)): position is measured.
 H = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]])
 
 
@@ -87,7 +89,8 @@ def _symmetrize(P: np.ndarray) -> np.ndarray:
 
 # ------------------------------------------------------------------------------------------------- model
 def cv_model(dt, sigma_a):
-    """Transition matrix F and process-noise covariance Q of the CV model (seed 004 eqs. (5), (7)).
+    """Transition matrix F and process-noise covariance Q of the CV model (Tengesdal, Brekke & Johansen 2020, eqs.
+    (5), (7)).
 
     Args:
         dt: sampling interval [s], > 0.
@@ -107,7 +110,7 @@ def cv_model(dt, sigma_a):
 
 
 def initiate(z, R, U_max, kappa=DEFAULT_KAPPA):
-    """Single-point track initiation (Mallick & Scala 2008; seed 004 §7).
+    """Single-point track initiation (Mallick & Scala 2008; Tengesdal, Brekke & Johansen 2020, Sec. 7).
 
     Position = the measurement, velocity = 0, ``P = blockdiag(R, (U_max / kappa)² I2)``.
 
@@ -116,7 +119,7 @@ def initiate(z, R, U_max, kappa=DEFAULT_KAPPA):
         R: ``[2, 2]`` or ``[..., 2, 2]`` measurement covariance of the filter [m²], symmetric positive definite.
         U_max: maximum target speed [m/s], > 0 (assumed known a priori).
         kappa: how many standard deviations U_max spans per velocity component, > 0. U_max = 9 m/s, kappa = 2
-            gives a velocity variance of 20.25 (m/s)² (seed 004: "surpassing 20 (m/s)² initially").
+            gives a velocity variance of 20.25 (m/s)² (the paper: "surpassing 20 (m/s)² initially").
 
     Returns:
         ``(x [..., 4], P [..., 4, 4])``.
@@ -235,9 +238,9 @@ class TrackerBank:
 
     Args:
         n_batch_shape: batch shape of the bank, e.g. ``(runs, targets)``; a bare int is taken as ``(n,)``.
-        R_filter: ``[2, 2]`` measurement covariance *used by the filter* [m²] (seed 004's conservative
+        R_filter: ``[2, 2]`` measurement covariance *used by the filter* [m²] (the paper's conservative
             tuning: 25 × the true R).
-        sigma_a: process-noise strength [m/s²] (seed 004: 0.5).
+        sigma_a: process-noise strength [m/s²] (Tengesdal, Brekke & Johansen 2020: 0.5).
         U_max: maximum target speed for initiation [m/s].
         kappa: see :func:`initiate`.
 

@@ -1,5 +1,5 @@
 """True vessel motion for the closed-loop simulator: the kinematic model with LOS guidance and first-order
-autopilot lags (SPEC §2, paper eq. 19), vectorised over any leading batch axes in NumPy float64.
+autopilot lags (Tengesdal et al. 2022, eqs. 3–6 and 19), vectorised over any leading batch axes in NumPy float64.
 
 It is the same model and guidance law that the planner uses for its predictions (``ownship.los_rollout``),
 stepped one simulation step at a time, with the MPC's course offset added to the LOS course and the speed
@@ -13,7 +13,7 @@ import numpy as np
 from ..numerics import wrap_angle_host as wrap
 
 #: How far the simulator extends every route beyond its last waypoint, along the last leg [m]: ships keep
-#: the last leg's course after their route ends (SPEC §2), and the planner sees the same extended line.
+#: the last leg's course after their route ends (docs/algorithm.md §2), and the planner sees the same extended line.
 ROUTE_EXTENSION_M = 20_000.0
 
 

@@ -1,5 +1,6 @@
 """3-DOF manoeuvring model (Fossen 2021) with a speed/heading autopilot: an alternative *truth* ship model for
-the closed-loop simulator, next to the kinematic one in :mod:`psbmpc_jax.sim.vessel` (seed 002, eq. 1).
+the closed-loop simulator, next to the kinematic one in :mod:`psbmpc_jax.sim.vessel` (Akdağ, Fossen & Johansen 2022,
+eq. 1).
 
     eta_dot = R(psi) nu,        M nu_dot + C(nu) nu + D(nu) nu = tau
 

@@ -1,12 +1,12 @@
-"""The smooth two-stage planner of SPEC_SEEDS §1.5–1.6 (000): building blocks.
+"""The smooth two-stage planner of Mahipala & Johansen (2024, Smooth-SBMPC, Secs. VI–VII): building blocks.
 
 * :mod:`.land_hit` — :func:`first_land_hit`: N_TP of the initialisation stage (the first trajectory index that
   collides with land: ship-domain disc meets land, or the segment from the previous point meets an edge),
   vectorised over behaviours and jitted; :func:`land_collision_flags`: the per-point flags.
-* :mod:`.corridor` — Algorithm 3, the cross-track-error corridor (choice C-000-8): :func:`buffer_land` /
-  :func:`buffered_chart` (shapely buffer by r_dom, packed for the device once), :func:`cross_track_corridor`
-  (jitted ray cast), :func:`cross_track_corridor_shapely` (host oracle), :func:`cross_track_residuals`
-  (constraints h <= 0 for the optimiser) and the :class:`Corridor` result.
+* :mod:`.corridor` — Algorithm 3, the cross-track-error corridor (as a cross-track inequality: choice SM-8,
+  docs/algorithm.md §12): :func:`buffer_land` / :func:`buffered_chart` (shapely buffer by r_dom, packed for the device
+  once), :func:`cross_track_corridor` (jitted ray cast), :func:`cross_track_corridor_shapely` (host oracle),
+  :func:`cross_track_residuals` (constraints h <= 0 for the optimiser) and the :class:`Corridor` result.
 * :mod:`.init_stage` — Algorithms 1–2 (the original SB-MPC in closed loop over T_init):
   :func:`~.init_stage.init_stage` (not re-exported here: the name is the module's).
 * :mod:`.docp` — the DOCP (27) and one jitted step (init stage → corridor → multi-start DOCP → safeguard):

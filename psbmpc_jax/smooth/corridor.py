@@ -1,5 +1,6 @@
-"""Algorithm 3 of SPEC_SEEDS §1.6: the cross-track-error corridor around a reference trajectory Ψ, in the
-cross-track form of choice C-000-8 (see ``docs/corridor.md``).
+"""Algorithm 3 of Mahipala & Johansen (2024, Sec. VII): the cross-track-error corridor around a reference trajectory
+Ψ, in the cross-track form of choice SM-8 (eq. (28) read as an inequality on the cross-track coordinate, not the
+printed per-coordinate box; see ``docs/corridor.md``).
 
 For reference positions ``P [N+1, 2]`` (north, east) and land buffered by the ship-domain radius
 (G = ⊕ r_dom of the union of the land polygons), at every step j:

@@ -1,4 +1,4 @@
-"""The MPC stage of Smooth-SBMPC (seed 000, SPEC_SEEDS §1.6): the DOCP (27) over per-step offsets, and one
+"""The MPC stage of Smooth-SBMPC (Mahipala & Johansen 2024, Sec. VII): the DOCP (27) over per-step offsets, and one
 complete Smooth-SBMPC step (initialisation stage → corridor → DOCP from several starts → safeguard), jitted as
 one computation.
 
@@ -9,12 +9,13 @@ kinematic model (13) under route LOS, so the dynamics hold exactly), box −90°
 
 subject to the terminal condition x_{N_mpc} = Ψ_{N_mpc} (``terminal="full"``: x, y, χ (wrapped), U;
 ``"position"``: x, y; ``"soft"``: a quadratic penalty instead) and the cross-track corridor of Ψ (Alg. 3,
-C-000-8) at steps 1..N_mpc.  Solved by :func:`psbmpc_jax.nlp.solve_docp` (augmented Lagrangian, L-BFGS on a box
-map, settings :data:`DOCP_SOLVER` unless given) from the warm start Ψ (the init stage's offsets) and, with
-``n_starts > 1``, also from the ``n_starts − 1`` best constant behaviours of the init stage's first inner step
-(:func:`psbmpc_jax.nlp.solve_multistart`, ``batch="map"`` or ``"vmap"``); the best feasible result
-(:func:`psbmpc_jax.nlp.best_index`) then passes the safeguard: a result worse or less feasible than the best
-of the starts themselves (Ψ, or the previous plan when that is feasible and cheaper) is replaced by that start.
+read as a cross-track inequality: choice SM-8, docs/algorithm.md §12) at steps 1..N_mpc. Solved by
+:func:`psbmpc_jax.nlp.solve_docp` (augmented Lagrangian, L-BFGS on a box map, settings :data:`DOCP_SOLVER` unless
+given) from the warm start Ψ (the init stage's offsets) and, with ``n_starts > 1``, also from the ``n_starts − 1``
+best constant behaviours of the init stage's first inner step (:func:`psbmpc_jax.nlp.solve_multistart`,
+``batch="map"`` or ``"vmap"``); the best feasible result (:func:`psbmpc_jax.nlp.best_index`) then passes the
+safeguard: a result worse or less feasible than the best of the starts themselves (Ψ, or the previous plan when that
+is feasible and cheaper) is replaced by that start.
 
 **χ_d inside the DOCP** (``settings.chi_d_mode``, :mod:`psbmpc_jax.smooth.guidance`): ``"terminal_los"`` (the
 paper's, the default) takes LOS on the line from the ship through Ψ_N; Ψ's offsets are re-expressed against

@@ -1,4 +1,5 @@
-"""Initialisation stage of Smooth-SBMPC (Algorithms 1 and 2 of seed 000; SPEC_SEEDS §1.5), one jitted ``lax.scan``.
+"""Initialisation stage of Smooth-SBMPC (Mahipala & Johansen 2024, Sec. VI, Algorithms 1 and 2), one jitted
+``lax.scan``.
 
 At every inner step j = 0 .. N_init − 1 the original SB-MPC chooses one of the 39 behaviours (course offsets
 −90 … 90° in 15° steps × speed factors {0.1, 0.5, 1}) by
@@ -6,12 +7,12 @@ At every inner step j = 0 .. N_init − 1 the original SB-MPC chooses one of the
     total_k = max_i max_{τ ≥ τ_j + T_s} (σ_coll C R + κ μ_FIS)_k  +  Γ_smooth(U*, χ*; Ū, χ̄)  +  k_NTP (N_init − N_TP,k)
 
 over a prediction of T_init from the *inner* state (own-ship: LOS along the route, re-evaluated along each
-prediction, C-000-11; targets: constant velocity, point objects); ties go to the first behaviour in
-enumeration order.  The chosen offsets are applied for one step of the kinematic model (13) and become the
-"last" offsets of the next inner step (C-000-6); the targets advance by one step of (14).  The result is the
-trajectory Ψ (N_init + 1 states, C-000-12) and the N_init applied offsets; rolled out from the same start with
-:func:`psbmpc_jax.ownship.los_rollout` the offsets reproduce Ψ exactly (the route segment is carried through the
-loop), which is what makes Ψ a feasible warm start of the DOCP (27).
+prediction, choice SM-11 of docs/algorithm.md §12; targets: constant velocity, point objects); ties go to the first
+behaviour in enumeration order. The chosen offsets are applied for one step of the kinematic model (13) and become the
+"last" offsets of the next inner step (Alg. 1 prints this update reversed: choice SM-6); the targets advance by one
+step of (14). The result is the trajectory Ψ (N_init + 1 states: choice SM-12) and the N_init applied offsets; rolled
+out from the same start with :func:`psbmpc_jax.ownship.los_rollout` the offsets reproduce Ψ exactly (the route segment
+is carried through the loop), which is what makes Ψ a feasible warm start of the DOCP (27).
 
 Own-ship states are ``(x, y, χ, U)``; targets ``(x, y, χ, U)``; controls ``(U_m, χ_m)`` (speed factor, course
 offset [rad]), the package's column order.
@@ -116,9 +117,9 @@ class SmoothSettings:
 @jax.tree_util.register_dataclass
 @dataclasses.dataclass(frozen=True)
 class SmoothWeights:
-    """Numeric tuning of the smooth costs (pytree leaves: a new value never recompiles).  Defaults: SPEC_SEEDS
-    §1.8 (d_safe 10 m, d_cl 40 m, e_cl = L_os = 5 m, K_coll 1 s²/m², κ 10, p 1, q 4, Γ weights of 004 Table 1,
-    k_NTP 1 per lost point, ε 1e-6)."""
+    """Numeric tuning of the smooth costs (pytree leaves: a new value never recompiles). Defaults: our proposals where
+    Mahipala & Johansen 2024 give none (d_safe 10 m, d_cl 40 m, e_cl = L_os = 5 m, K_coll 1 s²/m², κ 10, p 1, q 4, Γ
+    weights of Tengesdal, Brekke & Johansen 2020, Table 1, k_NTP 1 per lost point, ε 1e-6)."""
 
     d_safe: float = 10.0
     K_coll: float = 1.0
@@ -209,13 +210,13 @@ def gamma_weights(weights: SmoothWeights) -> dict:
                 Delta_U=weights.Delta_U, Delta_chi_port=weights.Delta_chi_port, Delta_chi_stbd=weights.Delta_chi_stbd)
 
 
-#: C-000-16 (our addition): when the inner state is already within r_dom of land, the N_TP test uses this
-#: fraction of its present clearance as the domain radius.
+#: Choice SM-16 (our addition, docs/algorithm.md §12): when the inner state is already within r_dom of land, the N_TP
+#: test uses this fraction of its present clearance as the domain radius.
 DOMAIN_SHRINK = 0.9
 
 
 def domain_radius(state, chart, r_dom):
-    """The ship-domain radius of the N_TP test at one inner state (C-000-16, docs/smooth_sbmpc.md):
+    """The ship-domain radius of the N_TP test at one inner state (choice SM-16, docs/smooth_sbmpc.md):
     ``min(r_dom, DOMAIN_SHRINK · clearance)``, clearance = the state's distance to land.  With the plain r_dom a
     state already closer than r_dom to land (a closed loop that follows a plan along the corridor's edge ends
     there by millimetres of tracking error) flags point 0 of every behaviour: N_TP = 0 for all 39, the penalty

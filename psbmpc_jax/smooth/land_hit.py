@@ -1,5 +1,5 @@
-"""N_TP of the initialisation stage (SPEC_SEEDS §1.5, Fig. 5): the index of the first trajectory point that
-collides with land.
+"""N_TP of the initialisation stage (Mahipala & Johansen 2024, Sec. VI, Fig. 5): the index of the first trajectory
+point that collides with land.
 
 A collision occurs at point j of a trajectory ``Ψ̄ [N+1, 2]`` (north, east) if
 
@@ -206,7 +206,8 @@ def segment_hits_edge(p0x, p0y, p1x, p1y, e):
 
 # --------------------------------------------------------------------------------------------- kernel
 def _flags_kernel(pts, chart: ChartArrays, r_dom, block: int):
-    """Collision flags ``[K, T]`` of trajectories ``pts [K, T, 2]`` (the SPEC rule (a) or (b) at each j)."""
+    """Collision flags ``[K, T]`` of trajectories ``pts [K, T, 2]`` (rule (a) or (b) of the module
+    docstring at each j)."""
     point_hit, seg_hit, _, _ = _scan_chart(pts, chart, r_dom, block)
     return point_hit | seg_hit
 
@@ -298,7 +299,7 @@ def land_collision_flags(traj_xy, chart, r_dom, *, block: int = DEFAULT_BLOCK) -
 
 
 def first_land_hit(traj_xy, chart, r_dom, *, block: int = DEFAULT_BLOCK) -> jax.Array:
-    """N_TP of SPEC_SEEDS §1.5: the index of the first colliding point of each trajectory
+    """N_TP of Mahipala & Johansen (2024, Sec. VI): the index of the first colliding point of each trajectory
     ``traj_xy [..., N+1, 2]`` (int32 ``[...]``; a single trajectory ``[N+1, 2]`` gives a scalar), N when none
     collides.  ``chart``: the *unbuffered* land polygons as packed by :func:`~psbmpc_jax.packing.pack_world`
     (``ChartArrays`` or the ``WorldArrays`` holding them); ``r_dom``: ship-domain radius [m] (>= 0).

@@ -1,4 +1,4 @@
-"""Host API of Smooth-SBMPC (seed 000) for the closed-loop simulator: :class:`SmoothSBMPCPlanner`.
+"""Host API of Smooth-SBMPC (Mahipala & Johansen 2024) for the closed-loop simulator: :class:`SmoothSBMPCPlanner`.
 
 >>> planner = SmoothSBMPCPlanner(polygons)                       # packs the land chart and its buffer once
 >>> plan = planner.plan(state0, route, targets, last, segment=0)  # one ship
@@ -59,7 +59,7 @@ class SmoothPlan(NamedTuple):
         warm_cost: J_d of the warm start Ψ (``init_only``: = cost).
         violation: max constraint violation of the kept sequence [m, rad] (``init_only``: 0).
         used_warm: the safeguard kept the warm start (``init_only``: True).
-        status: solver status of the best start (0 converged, 1 max-iter, 2 infeasible, 3 non-finite;
+        status: solver status of the best start (0 ok/converged, 3 max-iter, 4 infeasible, 5 non-finite;
             ``init_only``: 0).
         iterations: inner solver iterations summed over the starts (``init_only``: 0).
         route_frame: the DOCP ran in the route frame (``chi_d_mode="route_los"``, or Ψ did not fit the box in the

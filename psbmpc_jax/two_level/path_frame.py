@@ -1,4 +1,4 @@
-"""Path frames {P_j} of the upper level of the two-level MPC (seed 001, Mahipala & Johansen, eqs. 3-4;
+"""Path frames {P_j} of the upper level of the two-level MPC (Mahipala & Johansen 2023, eqs. 3-4;
 ``docs/two_level_geometry.md``).
 
 Frame: NED (x north, y east) [m].  The route is ``waypoints [n >= 2, 2]``; leg j runs WP_j -> WP_{j+1}

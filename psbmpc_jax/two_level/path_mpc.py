@@ -1,15 +1,17 @@
-"""The upper level of the two-level MPC (seed 001, SPEC_SEEDS §2.3): a path-following NMPC on the project's
-JAX NLP core (:mod:`psbmpc_jax.nlp`).
+"""The upper level of the two-level MPC (Mahipala & Johansen 2023, Sec. IV, eqs. 5–12): a path-following NMPC on the
+project's JAX NLP core (:mod:`psbmpc_jax.nlp`).
 
 Decision: the absolute course and speed commands u_k = (χ_d,k, U_d,k), k = 0..N_p−1 (single shooting; the
-states follow from x₀ by RK4 of the continuous model of C-001-1
+states follow from x₀ by RK4 of the continuous form of the paper's model (1), which is printed without dt (choice
+TL-1, docs/algorithm.md §15)
 
     ẋ = U cos χ,  ẏ = U sin χ,  χ̇ = wrap(χ_d − χ)/T_χ,  U̇ = (U_d − U)/T_U        (NED, χ from north)
 
 over the MPC step).  Single shooting has the same optimum as the paper's multiple shooting (the defect
 constraints (8) are eliminated exactly) with 2 N_p instead of 6 N_p + 4 unknowns; see docs/two_level.md.
 
-Cost (7), read as C-001-3:
+Cost (7), with our reading of its index ranges (choice TL-3: every move including the first, from the applied
+command):
 
     Σ_{k=1}^{N_p} ‖x_k − x_ref‖²_Q + Σ_{k=0}^{N_p−1} ‖u_k − u_{k−1}‖²_M,   u_{−1} = the applied command
 
@@ -18,8 +20,8 @@ errors wrapped.  Constraints: the box (9) χ_d ∈ [ψ_j − χ_span, ψ_j + χ_
 angle; default χ_span 90°), U_d ∈ [0, U_max]; the static circles (10)/(12) ‖p_k − c_i‖ ≥ r_i + r_os; the
 riparian corridor (11) lower_j(s) ≤ y_p ≤ upper_j(s) in the frame of the leg each predicted point is on
 (the current leg while x_p ≤ l_j, the next one after), the bounds piecewise linear in the along-track s
-(C-001-4).  The augmented-Lagrangian solver (:func:`psbmpc_jax.nlp.solve_docp`) handles both inequality
-sets; the box is exact (reparametrised).
+(choice TL-4: the corridor is sampled at other points than the MPC steps). The augmented-Lagrangian solver
+(:func:`psbmpc_jax.nlp.solve_docp`) handles both inequality sets; the box is exact (reparametrised).
 """
 
 from __future__ import annotations
@@ -41,7 +43,7 @@ from .static_obstacles import StaticCircles, circle_residuals
 
 @dataclasses.dataclass(frozen=True)
 class PathMpcSettings:
-    """Tuning of the upper level (SPEC §2.3 PROPOSED values as defaults).
+    """Tuning of the upper level (defaults: our proposals where Mahipala & Johansen 2023 give no values).
 
     Attributes:
         N_p: prediction steps (static).
@@ -130,7 +132,7 @@ class PathMpcData(NamedTuple):
 
 class PathMpcResult(NamedTuple):
     """``u [N_p, 2]`` (χ_d, U_d), predicted states ``x [N_p+1, 4]``, the cost, the max constraint violation
-    [m], the solver status (0 converged, 1 max-iter, 2 infeasible, 3 non-finite) and iteration counts."""
+    [m], the solver status (0 ok/converged, 3 max-iter, 4 infeasible, 5 non-finite: :class:`psbmpc_jax.status.Status`) and iteration counts."""
 
     u: jax.Array
     x: jax.Array
@@ -205,7 +207,7 @@ def _reference(data: PathMpcData):
 
 
 def path_mpc_cost(u, data: PathMpcData, settings: PathMpcSettings):
-    """Eq. (7) (C-001-3: every move including the first, course errors wrapped)."""
+    """Eq. (7) (our reading TL-3: every move including the first, course errors wrapped)."""
     x = rollout(data.x0, u, settings)[1:]
     ref = _reference(data)
     e = x - ref

@@ -1,12 +1,13 @@
-"""The two-level MPC of seed 001 as one planner (SPEC_SEEDS §2.1, docs/two_level.md): per update
+"""The two-level MPC of Mahipala & Johansen (2023, Secs. II, IV, V, Fig. 1) as one planner (docs/two_level.md):
+per update
 
 1. the active leg (switch past the leg's end or within R_a of its waypoint);
 2. the upper level, :func:`~psbmpc_jax.two_level.path_mpc.solve_path_mpc`: absolute commands (χ_d, U_d) over
    N_p steps against the static circles and the riparian corridor of the route (built once per leg);
 3. the lower level, the original SB-MPC (39 behaviours) with ζ (eq. 15) on the grid evaluator: the own-ship's
-   nominal course follows the upper level's plan (C-001-7: LOS through the planned positions, then straight
-   on along the last planned course; ``nominal="hold"``: straight on along χ_d,0 from the start), the targets
-   predicted by the ground-avoiding CV model (eq. 2) and handed to the evaluator as routes;
+   nominal course follows the upper level's plan (choice TL-7, docs/algorithm.md §15: LOS through the planned
+   positions, then straight on along the last planned course; ``nominal="hold"``: straight on along χ_d,0 from the
+   start), the targets predicted by the ground-avoiding CV model (eq. 2) and handed to the evaluator as routes;
 4. the command χ_c = χ_d,0 + χ_m, U_c = U_d,0 · U_m.
 """
 
@@ -37,29 +38,31 @@ from .prediction import DEFAULT_BETA, DEFAULT_D_CRITICAL, predict_targets
 from .riparian import leg_corridors
 from .static_obstacles import StaticCircles, concat_circles
 
-#: The 39 behaviours of SPEC §0.2: speed factors {1, 0.5, 0} × course offsets −90 … 90° in 15° steps.
+#: The 39 behaviours of the original SB-MPC as Mahipala & Johansen (2023, 2024) restate it: speed factors {1, 0.5, 0}
+#: × course offsets −90 … 90° in 15° steps.
 SBMPC_BEHAVIOURS = enumerate_behaviours_deg(((1.0, 0.5, 0.0),), (tuple(range(-90, 91, 15)),))
 NOMINALS = ("plan", "hold")
 
 
 @dataclasses.dataclass(frozen=True)
 class TwoLevelSettings:
-    """Tuning of the two-level method (SPEC_SEEDS §2.3–2.4 PROPOSED values as defaults; fjord scale).
+    """Tuning of the two-level method (defaults: our proposals where Mahipala & Johansen 2023 give no values; fjord
+    scale).
 
     Attributes:
         path: the upper level (:class:`PathMpcSettings`).
         corridor_half_width, corridor_sample, corridor_radius, corridor_margin: Algorithm 1's Δd, Δs, R_RG and
             the buffer of the land [m] (proposed r_os + 2 m).
-        circle_margin: added to the enclosing circle of land that crosses a leg (C-001-8) [m]; the circle
+        circle_margin: added to the enclosing circle of land that crosses a leg (choice TL-8) [m]; the circle
             constraint adds r_os on top.
         r_accept: leg switching radius R_a [m].
         beta, d_critical, prediction_compare: the targets' ground-avoiding prediction (eq. 2).
         eta1, eta2, d_close, zeta_d_safe, zeta_shape: ζ of eq. (15) (``zeta_shape`` "printed" or "psbmpc").
         sbmpc: the SB-MPC's collision/COLREGS/Γ tuning (:class:`~psbmpc_jax.methods.sbmpc_family.SbmpcSettings`).
-        nominal: the SB-MPC's nominal references: ``"plan"`` (C-001-7) or ``"hold"`` (the flag).
+        nominal: the SB-MPC's nominal references: ``"plan"`` (choice TL-7) or ``"hold"`` (the flag).
         plan_stride: every how many MPC steps a planned position becomes a nominal waypoint.
         sbmpc_every: the SB-MPC solves at every ``sbmpc_every``-th update (the first included) and its
-            (χ_m, U_m) is held in between (SPEC §2.4 proposes the MPC every 1 s, the SB-MPC every 5 s).
+            (χ_m, U_m) is held in between (our proposal: the MPC every 1 s, the SB-MPC every 5 s).
 
     The defaults shared with scenario files are defined once, by the ``mpc.two_level`` section
     (:class:`~psbmpc_jax.methods.two_level_settings.TwoLevelSpec`), except ``sbmpc_every``: 1 here, 5 there.
@@ -173,7 +176,7 @@ class TwoLevelPlanner:
         polygons: the chart (land) as the situation takes it (rings ``[n, 2]`` or tuples of rings).
         circles: static obstacles: a :class:`~psbmpc_jax.two_level.static_obstacles.StaticCircles`, the YAML
             list ``[{center_m: [n, e], radius_m: r}, ...]``, or None; land that crosses a leg is added as a
-            circle (C-001-8) and left out of the corridors.
+            circle (choice TL-8) and left out of the corridors.
         U_ref: cruise speed [m/s] (the upper level's reference and the SB-MPC's nominal speed scale).
         settings: :class:`TwoLevelSettings`.
         config: the SB-MPC's horizon and step (its :class:`~psbmpc_jax.params.PlannerConfig`; ``grid`` grounding

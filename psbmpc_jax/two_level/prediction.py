@@ -1,5 +1,5 @@
-"""Ground-avoiding constant-velocity target prediction of seed 001 (Mahipala & Johansen, MED 2023, eq. 2;
-SPEC_SEEDS §2.2; docs/two_level_prediction.md).
+"""Ground-avoiding constant-velocity target prediction of Mahipala & Johansen (MED 2023, Sec. III, eq. 2;
+docs/two_level_prediction.md).
 
 A target with state (x, y, χ, U) (NED: x north, y east [m], course χ [rad] clockwise from north, speed U
 [m/s], constant) is predicted over k = 0..n_steps, step ``dt`` [s]:
@@ -17,13 +17,13 @@ A target with state (x, y, χ, U) (NED: x north, y east [m], course χ [rad] clo
   p_k + t (cos χ, sin χ) on a land edge (edges are closed: a ray through a vertex or grazing one hits), 0 when
   p_k is inside land, +inf when nothing is hit within ``max_range`` (treated as clear).  The ray/edge test
   (:func:`psbmpc_jax.smooth.land_hit.ray_edge_t`) is robust at vertices: a ray through a vertex cannot slip between its two edges.
-  Rays are capped at ``max_range`` (default 2 d_critical, SPEC proposal).
+  Rays are capped at ``max_range`` (default 2 d_critical, our proposal: the paper gives no range).
 * **β** is a per-step angle [rad] (β > 0 = starboard turn in NED): the proposed 5° per step holds for dt = 1 s
   as given; it is *not* rescaled with ``dt`` (a turn rate of β / dt).  Ties (both rays equally clear, or both
   clear) turn to +β.
-* ``compare="both"`` (SPEC option for C-001-2): compare d_LOSg(β+) with d_LOSg(β−) and turn to the larger
-  (ties → +β).  The SPEC's text says "least distance" while the equation turns towards more clearance; the
-  default follows the equation.
+* ``compare="both"`` (the option of choice TL-2, docs/algorithm.md §15): compare d_LOSg(β+) with d_LOSg(β−) and turn
+  to the larger (ties → +β). The paper's text says "least ... distance to the ground" while the equation turns towards
+  more clearance; the default follows the equation.
 * Courses are not wrapped (χ_k = χ_0 + m β for an integer m); U is held constant.
 
 Inside test: even–odd rule per polygon (its rings, i.e. holes, back to back as packed by
@@ -55,8 +55,8 @@ from ..packing import ChartArrays
 from ..smooth.land_hit import (DEFAULT_BLOCK, as_chart, box_near, concrete_float, crossings, cull_tolerance,
                                edge_blocks, may_cross, ray_edge_t)
 
-#: Proposed defaults (SPEC_SEEDS §2.2): β = 5° per step at dt = 1 s, d_critical = 50 m, ray range 2 d_critical
-#: (defined once, by the scenario files' ``mpc.two_level.prediction`` section).
+#: Our proposed defaults (the paper gives no numbers): β = 5° per step at dt = 1 s, d_critical = 50 m, ray range 2
+#: d_critical (defined once, by the scenario files' ``mpc.two_level.prediction`` section).
 DEFAULT_BETA = TwoLevelSpec.beta
 DEFAULT_D_CRITICAL = TwoLevelSpec.d_critical
 DEFAULT_DT = 1.0

@@ -1,10 +1,10 @@
-"""Riparian-land corridor of the upper level of the two-level MPC (seed 001, Mahipala & Johansen,
+"""Riparian-land corridor of the upper level of the two-level MPC (Mahipala & Johansen 2023,
 Algorithm 1; ``docs/two_level_geometry.md``): per route leg, the cross-track bounds g_lh(s) <= y_p <= g_rh(s)
 left by the land, computed once per leg from the chart and cached.
 
 For leg j (WP_j -> WP_{j+1}, course ψ_j, length l_j; path frame of :mod:`.path_frame`):
 
-1. **Crossing land (C-001-8).** A land piece (a connected part of the union of the land,
+1. **Crossing land (choice TL-8, docs/algorithm.md §15).** A land piece (a connected part of the union of the land,
    :func:`~.static_obstacles.land_pieces`) that meets the closed leg segment is split
    (:func:`split_crossing`): its part within ``margin`` of the segment becomes a static obstacle, the minimum
    enclosing circle of that part plus ``circle_margin``; the rest of the piece outside the circle stays land
@@ -24,7 +24,7 @@ For leg j (WP_j -> WP_{j+1}, course ψ_j, length l_j; path frame of :mod:`.path_
    :func:`psbmpc_jax.smooth.corridor.cross_track_corridor` against :func:`~psbmpc_jax.smooth.corridor.buffered_chart`;
    ``device=False`` the shapely oracle :func:`~psbmpc_jax.smooth.corridor.cross_track_corridor_shapely`.
    Both work in leg-local coordinates (origin WP_j) for precision.
-5. **Bounds (C-001-4)**: piecewise-linear in the along-track coordinate s through the samples
+5. **Bounds (choice TL-4)**: piecewise-linear in the along-track coordinate s through the samples
    (:func:`corridor_bounds`, clamped at the ends), evaluated at a predicted x_p.
 
 Results are cached (:func:`leg_corridor`): the key is the content hash of the chart (:func:`land_key`), the
@@ -177,7 +177,7 @@ def _segments(w: np.ndarray, legs) -> list:
 
 
 def split_crossing(piece, segments, reach: float | None, circle_margin: float):
-    """C-001-8 for one land ``piece`` that meets the leg ``segments``: the circle ``(centre, radius)``
+    """Choice TL-8 for one land ``piece`` that meets the leg ``segments``: the circle ``(centre, radius)``
     enclosing the part of the piece within ``reach`` [m] of them (None: the whole piece) (+ ``circle_margin``),
     and the rest of the piece outside that circle (a list of polygons, possibly empty).  The rest lies at
     least ``reach`` from the segments.  The corridor uses ``reach`` = 2 × its buffer margin, so the buffered
@@ -197,7 +197,7 @@ def split_crossing(piece, segments, reach: float | None, circle_margin: float):
 
 def crossing_land_circles(waypoints, land_polygons, margin: float = DEFAULT_CIRCLE_MARGIN, *, legs=None,
                           reach: float | None = None):
-    """C-001-8: the land pieces (:func:`~.static_obstacles.land_pieces`) that meet a leg segment (closed:
+    """Choice TL-8: the land pieces (:func:`~.static_obstacles.land_pieces`) that meet a leg segment (closed:
     touching counts) of ``legs`` (default: every leg), as static circles (minimum enclosing circle +
     ``margin`` >= 0 [m], one per piece, in piece order), and the other pieces.
 
@@ -297,7 +297,7 @@ def leg_corridor(waypoints, j, land_polygons, *, margin, half_width: float = DEF
         sample: ds > 0 [m], the largest sample spacing (e.g. U·dt of the upper MPC).
         radius: R_RG [m] >= 0: only land pieces within this distance of the leg segment form RG.  Default
             (``None``): half_width + margin, i.e. all land a ray can reach; a smaller value ignores farther land.
-        circle_margin: >= 0 [m] added to the enclosing circle of land crossing the leg (C-001-8).
+        circle_margin: >= 0 [m] added to the enclosing circle of land crossing the leg (choice TL-8).
         quad_segs: shapely buffer segments per quarter circle.
         static_circles_out: a list that receives ``(centre [2], radius)`` of each land piece crossing the leg
             (not already in it); :meth:`StaticCircles.from_pairs` turns it into circles.
@@ -359,7 +359,7 @@ def _float(x):
 
 
 def corridor_bounds(corridor: LegCorridor, s_query):
-    """C-001-4: the bounds (g_lh, g_rh) at along-track positions ``s_query`` (any shape) [m]: linear
+    """Choice TL-4: the bounds (g_lh, g_rh) at along-track positions ``s_query`` (any shape) [m]: linear
     interpolation through the samples, clamped to the end values outside [0, l_j].  jax.numpy, traceable,
     differentiable w.r.t. ``s_query`` (slope of the segment; 0 outside the leg).  Returns ``(lower, upper)``
     shaped like ``s_query``."""

@@ -1,4 +1,4 @@
-"""Static obstacles of the upper level of the two-level MPC (seed 001, eqs. 10, 12;
+"""Static obstacles of the upper level of the two-level MPC (Mahipala & Johansen 2023, eqs. 10, 12;
 ``docs/two_level_geometry.md``): circles (centre [north, east], radius) and the per-step constraint
 
     ||p_k − c_i|| >= L_i = r_i + r_os,
@@ -8,8 +8,8 @@ margin of the obstacle itself; r_os (the own-ship's radius) is added by the cons
 
 Circles come from a scenario file (:func:`from_yaml`: a list of ``{center_m: [n, e], radius_m: r}``) or
 from land (:func:`circles_from_land`, :func:`enclosing_circle`: the minimum enclosing circle of a land
-piece plus a margin; choice C-001-8 uses it for the land that crosses a route leg, see
-:func:`psbmpc_jax.two_level.riparian.crossing_land_circles`).
+piece plus a margin; choice TL-8 (docs/algorithm.md §15; the enclosing circle follows Sec. IX-B of Mahipala & Johansen
+2024) uses it for the land that crosses a route leg, see :func:`psbmpc_jax.two_level.riparian.crossing_land_circles`).
 """
 
 from __future__ import annotations
