@@ -45,7 +45,8 @@ Without a subcommand psbmpc-jax runs example, and example's options may follow d
 options of each subcommand.
 
 Messages of the library (warnings by default) go to stderr: -v adds information (what was
-read, written, resampled), -vv debugging detail; -q shows errors only and no progress bars.
+read, written, resampled), -vv debugging detail; -q shows only its errors and no progress
+bars (Python warnings, such as a scenario file's, are still shown).
 These options come before the subcommand: psbmpc-jax -q run head_on.
 """
 
@@ -131,7 +132,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("-v", "--verbose", action="count", default=0, dest="verbosity",
                         help="more messages on stderr: -v information, -vv debugging detail")
     parser.add_argument("-q", "--quiet", action="store_true", dest="log_quiet",
-                        help="errors only on stderr, and no progress bars")
+                        help="only the library's errors on stderr, and no progress bars")
     sub = parser.add_subparsers(dest="command", metavar="SUBCOMMAND")
     ex = sub.add_parser("example", help="solve the built-in paper-scale head-on situation (the default)",
                         description="Solve the built-in paper-scale head-on situation and print the chosen "
@@ -231,7 +232,7 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                    help="replace the results of an earlier run in a scenario's folder (only the files listed in "
                         "its manifest.json are removed; other files are left alone); without it such a folder "
                         "is refused before anything is simulated")
-    p.add_argument("--quiet", action="store_true", help="no progress bar, and errors only on stderr (as psbmpc-jax -q)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar, and only the library's errors on stderr (as psbmpc-jax -q)")
 
 
 # ------------------------------------------------------------------------------------------------ example
