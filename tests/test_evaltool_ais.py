@@ -154,6 +154,8 @@ TWO = HEAD + GOOD + "2024-05-02T10:00:00Z,2,63.48,10.38,2.0,180.0\n2024-05-02T10
                                                                  r"'yesterday' \(ISO 8601 .* or Unix seconds"),
     (HEAD + GOOD.replace("2024-05-02T10:00:10Z", "1714644010"),
      r"row 3, column timestamp: not a timestamp: '1714644010' \(the file's other timestamps are ISO 8601"),
+    ("timestamp,MMSI,lat,lon\n1714644000000,1,63.47,10.38\n1714644010000,1,63.4702,10.38\n",
+     r"row 2, column timestamp: 1714644000000 is not Unix seconds from 1970 to 2100 .* milliseconds or micro"),
     (HEAD + GOOD.replace("Z,1,63.4702", "Z, ,63.4702"), r"row 3, column MMSI: empty vessel identifier"),
     (HEAD + GOOD + "2024-05-02T10:00:10Z,1,63.4703,10.38,2.0,10.0\n",
      r"row 4, column timestamp: vessel MMSI 1 has two reports at '2024-05-02T10:00:10Z' \(rows 3 and 4\)"),

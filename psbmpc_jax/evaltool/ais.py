@@ -38,7 +38,7 @@ from ..geo import LATLON_MAX_DISTANCE_M, latlon_to_ned, ned_to_latlon
 from .tracks import MAX_TRACK_SPEED_MPS, Tracks, derive_course_speed, own_index, unwrap_interp
 
 __all__ = ["AIS_COLUMNS", "AIS_OPTIONAL_COLUMNS", "COLUMN_ALIASES", "DEFAULT_DT_S", "MAX_SOG_KN", "GAP_WARN_S",
-           "KNOT_MPS", "ais_columns", "load_ais_csv", "ais_frame"]
+           "KNOT_MPS", "MAX_UNIX_S", "ais_columns", "load_ais_csv", "ais_frame"]
 
 log = logging.getLogger(__name__)
 
@@ -56,6 +56,8 @@ MAX_SOG_KN = 102.2
 #: A vessel without a report for longer than this [s] inside the overlap gets a warning (its track is interpolated
 #: linearly across the gap).
 GAP_WARN_S = 60.0
+#: Unix timestamps [s] must be below this (2100-01-01T00:00:00Z): larger ones are milliseconds or microseconds.
+MAX_UNIX_S = 4102444800.0
 #: One knot in m/s.
 KNOT_MPS = 1852.0 / 3600.0
 
@@ -239,6 +241,11 @@ def _times(col, fail) -> tuple[np.ndarray, str]:
 
     unix = pd.to_numeric(col, errors="coerce").to_numpy(float)
     if np.all(np.isfinite(unix)):
+        bad = np.flatnonzero((unix < 0) | (unix >= MAX_UNIX_S))
+        if bad.size:
+            i = int(bad[0])
+            fail(i, "timestamp", f"{col.iloc[i]} is not Unix seconds from 1970 to 2100 (0 <= t < {MAX_UNIX_S:.0f} "
+                                 f"allowed); milliseconds or microseconds?")
         return unix, "unix"
     parsed = pd.to_datetime(col, format="ISO8601", utc=True, errors="coerce")
     bad = np.flatnonzero(parsed.isna().to_numpy())
