@@ -127,6 +127,12 @@ def test_gap_warning_goes_to_the_logger(tmp_path, caplog, capsys):
     assert tr.names == ("1",) and tr.t[-1] == 110
     assert "vessel MMSI 1 has no report for 90 s (rows 3 to 4)" in caplog.text
     assert capsys.readouterr().out == ""
+    caplog.clear()
+    rows = ["timestamp,MMSI,lat,lon"] + [f"{t},1,63.47,{10.38 + t * 1e-5:.6f}" for t in range(0, 700, 100)]
+    with caplog.at_level(logging.WARNING, logger="psbmpc_jax.evaltool.ais"):
+        load_tracks(write(tmp_path, "\n".join(rows) + "\n", "gaps.csv"))
+    assert caplog.text.count("has no report for 100 s") == 3          # the first three, then a count
+    assert "vessel MMSI 1 has 3 more gaps longer than 60 s (the longest 100 s)" in caplog.text
 
 
 # --------------------------------------------------------------------------------------------- bad files

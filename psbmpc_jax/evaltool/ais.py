@@ -215,6 +215,9 @@ def load_ais_csv(p: pathlib.Path, header: list[str], rows: list[tuple[int, list[
         for k in gaps[:3]:
             log.warning("%s: vessel MMSI %s has no report for %.0f s (rows %d to %d); its track is interpolated "
                         "linearly across the gap", p, name, t[k + 1] - t[k], lines[idx[k]], lines[idx[k + 1]])
+        if gaps.size > 3:
+            log.warning("%s: vessel MMSI %s has %d more gaps longer than %g s (the longest %.0f s)", p, name,
+                        gaps.size - 3, GAP_WARN_S, float(np.max(np.diff(t)[gaps[3:]])))
         if (~inside).any():
             log.info("%s: vessel MMSI %s: %d of its %d reports lie outside the common period and are not scored",
                      p, name, int((~inside).sum()), t.size)
