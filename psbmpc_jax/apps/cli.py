@@ -165,8 +165,10 @@ def build_parser() -> argparse.ArgumentParser:
     ev = sub.add_parser("evaluate", help="COLREGS safety/compliance scores of saved trajectories (EvalTool)",
                         description="Score recorded trajectories with the COLREGS evaluation of Hagen et al. 2023 "
                                     "(reconstructed; docs/evaltool.md): the simulator's trajectories.npz / .csv "
-                                    "or output folder, or a user CSV (columns t_s, vessel, north_m, east_m[, "
-                                    "course_deg, speed_mps]). Exit status 2 for a file that cannot be read.")
+                                    "or output folder, a user CSV (columns t_s, vessel, north_m, east_m[, "
+                                    "course_deg, speed_mps]) or an AIS-style CSV (columns timestamp, MMSI, lat, "
+                                    "lon[, SOG, COG]; irregular reports, resampled onto a common clock). Exit "
+                                    "status 2 for a file that cannot be read.")
     add_evaluate_arguments(ev)
     parser._evaluate_parser = ev
     from .generate import add_generate_arguments
