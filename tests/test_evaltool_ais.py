@@ -60,9 +60,11 @@ def test_round_trip_gives_the_same_encounters(tmp_path, case, sog_cog, unix):
 
     Tolerances: a lat/lon rounded to 1e-6 deg is off by at most 0.056 m north and 0.025 m east (at 63.5 N), and
     linear interpolation between reports h <= 3 s apart cuts a turn of rate w at speed U by at most U w h^2 / 8
-    (0.06 m for the 3 deg/s turns here): 0.2 m on the CPA range covers both with margin (measured: at most 0.05 m
-    over 8 seeds).  The scores move with the ranges and with the course/speed resampling; 0.02 (measured: at most
-    0.0075 over the 8 seeds, both with SOG/COG and with course and speed derived from the positions) bounds them."""
+    (0.06 m for the 3 deg/s turns here): 0.2 m on the CPA range covers both with margin (measured: at most 0.051 m
+    over 8 seeds of report times, all four cases).  The CPA time lies on the 1 s evaluation grid and may move by
+    one sample (measured: 0 or 1 s): 1.5 s.  The scores move with the ranges and with the course/speed resampling;
+    0.02 bounds them (measured: at most 0.011 over the 8 seeds, both with SOG/COG and with course and speed derived
+    from the positions)."""
     base = scripted_tracks(CASES[case], 200.0, step_s=0.05)
     ref = evaluate_tracks(base, INLAND)
     rng = np.random.default_rng(7)
@@ -84,7 +86,7 @@ def test_round_trip_gives_the_same_encounters(tmp_path, case, sog_cog, unix):
     assert ref.encounters[0].situation == case
     for a, b in zip(ref.encounters, ev.encounters):
         assert b.r_cpa == pytest.approx(a.r_cpa, abs=0.2)
-        assert b.t_cpa == pytest.approx(a.t_cpa, abs=1.0)
+        assert b.t_cpa == pytest.approx(a.t_cpa, abs=1.5)
         for k in ("S_sit", "S_safety", "S_theta", "S_r", "P_delay"):
             x, y = getattr(a.scores, k), getattr(b.scores, k)
             assert (x is None) == (y is None), k
