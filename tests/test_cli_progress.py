@@ -101,6 +101,7 @@ def test_tqdm_used_when_installed(clock, monkeypatch):
     bar.close()
     (t,) = made
     assert t.total == 4 and t.kw["desc"] == "case" and t.kw["unit"] == "update"
+    assert t.kw["smoothing"] == 0      # the mean rate since the compiling update (an EMA follows a slow encounter)
     # the clock restarts after the compiling first update, which counts as the initial one
     assert ("reset", 4) in t.events and t.initial == 1
     assert [e for e in t.events if e[0] == "update"] == [("update", 1)] * 3

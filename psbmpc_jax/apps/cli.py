@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import difflib
+import logging
 import os
 import pathlib
 import statistics
@@ -42,7 +43,32 @@ PSB-MPC ship collision avoidance in JAX.
 Without a subcommand psbmpc-jax runs example, and example's options may follow directly
 (psbmpc-jax --n-m 1 is psbmpc-jax example --n-m 1). psbmpc-jax SUBCOMMAND --help lists the
 options of each subcommand.
+
+Messages of the library (warnings by default) go to stderr: -v adds information (what was
+read, written, resampled), -vv debugging detail; -q shows only its errors and no progress
+bars (Python warnings, such as a scenario file's, are still shown).
+These options come before the subcommand: psbmpc-jax -q run head_on.
 """
+
+#: The options of the top-level parser that may precede the subcommand.
+GLOBAL_FLAGS = ("-q", "--quiet", "-v", "--verbose", "-vv", "-vvv")
+#: Marks the handler :func:`configure_logging` installs (replaced, not stacked, on a second call).
+_HANDLER_NAME = "psbmpc-jax-cli"
+
+
+def configure_logging(verbosity: int) -> None:
+    """Route the library's log messages (logger ``psbmpc_jax``) to stderr: ``verbosity`` -1 (``-q``) errors
+    only, 0 warnings, 1 (``-v``) information, 2 (``-vv``) debugging detail."""
+    level = {-1: logging.ERROR, 0: logging.WARNING, 1: logging.INFO}.get(verbosity, logging.DEBUG)
+    logger = logging.getLogger("psbmpc_jax")
+    for h in [h for h in logger.handlers if h.get_name() == _HANDLER_NAME]:
+        logger.removeHandler(h)
+    handler = logging.StreamHandler(sys.stderr)
+    handler.set_name(_HANDLER_NAME)
+    handler.setFormatter(logging.Formatter("psbmpc-jax %(levelname)s %(name)s: %(message)s" if verbosity >= 2
+                                           else "psbmpc-jax: %(levelname)s: %(message)s"))
+    logger.addHandler(handler)
+    logger.setLevel(level)
 
 
 # ------------------------------------------------------------------------------------------ output checks
@@ -103,6 +129,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="psbmpc-jax", description=DESCRIPTION,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action="version", version=f"psbmpc-jax {__version__}")
+    parser.add_argument("-v", "--verbose", action="count", default=0, dest="verbosity",
+                        help="more messages on stderr: -v information, -vv debugging detail")
+    parser.add_argument("-q", "--quiet", action="store_true", dest="log_quiet",
+                        help="only the library's errors on stderr, and no progress bars")
     sub = parser.add_subparsers(dest="command", metavar="SUBCOMMAND")
     ex = sub.add_parser("example", help="solve the built-in paper-scale head-on situation (the default)",
                         description="Solve the built-in paper-scale head-on situation and print the chosen "
@@ -135,8 +165,10 @@ def build_parser() -> argparse.ArgumentParser:
     ev = sub.add_parser("evaluate", help="COLREGS safety/compliance scores of saved trajectories (EvalTool)",
                         description="Score recorded trajectories with the COLREGS evaluation of Hagen et al. 2023 "
                                     "(reconstructed; docs/evaltool.md): the simulator's trajectories.npz / .csv "
-                                    "or output folder, or a user CSV (columns t_s, vessel, north_m, east_m[, "
-                                    "course_deg, speed_mps]). Exit status 2 for a file that cannot be read.")
+                                    "or output folder, a user CSV (columns t_s, vessel, north_m, east_m[, "
+                                    "course_deg, speed_mps]) or an AIS-style CSV (columns timestamp, MMSI, lat, "
+                                    "lon[, SOG, COG]; irregular reports, resampled onto a common clock). Exit "
+                                    "status 2 for a file that cannot be read.")
     add_evaluate_arguments(ev)
     parser._evaluate_parser = ev
     from .generate import add_generate_arguments
@@ -202,7 +234,7 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
                    help="replace the results of an earlier run in a scenario's folder (only the files listed in "
                         "its manifest.json are removed; other files are left alone); without it such a folder "
                         "is refused before anything is simulated")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--quiet", action="store_true", help="no progress bar, and only the library's errors on stderr (as psbmpc-jax -q)")
 
 
 # ------------------------------------------------------------------------------------------------ example
@@ -442,16 +474,24 @@ def run_scenarios(args, parser) -> int:
 # ---------------------------------------------------------------------------------------------------- main
 def _with_default_subcommand(argv: list[str]) -> list[str]:
     """``psbmpc-jax`` and ``psbmpc-jax --n-m 1`` are ``psbmpc-jax example ...``."""
-    if not argv:
-        return ["example"]
-    if argv[0].startswith("-") and argv[0] not in ("-h", "--help", "--version"):
-        return ["example", *argv]
+    lead = 0
+    while lead < len(argv) and argv[lead] in GLOBAL_FLAGS:     # psbmpc-jax -q run ...: the global flags first
+        lead += 1
+    head, rest = argv[:lead], argv[lead:]
+    if not rest:
+        return [*head, "example"]
+    if rest[0].startswith("-") and rest[0] not in ("-h", "--help", "--version"):
+        return [*head, "example", *rest]
     return argv
 
 
 def _main(argv) -> int:
     parser = build_parser()
     args = parser.parse_args(_with_default_subcommand(list(sys.argv[1:] if argv is None else argv)))
+    quiet = args.log_quiet or getattr(args, "quiet", False)
+    if quiet and hasattr(args, "quiet"):
+        args.quiet = True                 # -q before the subcommand: also its progress output off
+    configure_logging(-1 if quiet else args.verbosity)
     if args.command == "example":
         return run_example(args)
     if args.command == "bench":
@@ -494,7 +534,19 @@ def _main(argv) -> int:
 
 
 def main(argv=None) -> int:
-    """Entry point of the ``psbmpc-jax`` console script; returns the exit status."""
+    """Entry point of the ``psbmpc-jax`` console script; returns the exit status.  The logging set up for the
+    command (:func:`configure_logging`) is undone when it returns, so a program calling ``main`` keeps its own."""
+    logger = logging.getLogger("psbmpc_jax")
+    level = logger.level
+    try:
+        return _main_guarded(argv)
+    finally:
+        for h in [h for h in logger.handlers if h.get_name() == _HANDLER_NAME]:
+            logger.removeHandler(h)
+        logger.setLevel(level)
+
+
+def _main_guarded(argv) -> int:
     try:
         rc = _main(argv)
         sys.stdout.flush()

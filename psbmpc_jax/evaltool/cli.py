@@ -3,7 +3,8 @@
 
     psbmpc-jax evaluate results/head_on                      # a run folder: the run's own evaluation settings
     psbmpc-jax evaluate results/head_on/trajectories.npz --range-scale 0.16666667
-    psbmpc-jax evaluate my_ais_tracks.csv --own ferry --preset inland_small --set r_stage2_m=120 --out scores.json
+    psbmpc-jax evaluate my_tracks.csv --own ferry --preset inland_small --set r_stage2_m=120 --out scores.json
+    psbmpc-jax evaluate examples/ais/crossing_trondheimsfjord.csv --own-mmsi 257000001 --range-scale 0.16666667
 
 The parameters: ``--preset`` / ``--range-scale`` when given; otherwise, for a run folder (or a file in one), the
 evaluation settings stored with the run (``metrics.json``: the scenario's ``evaluation`` section), else the
@@ -39,7 +40,8 @@ _READ_IN_FOLDER = ("trajectories.npz", "trajectories.csv", "metrics.json", "mani
 
 def add_evaluate_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("paths", nargs="+", help="trajectories.npz / trajectories.csv / a `run` output folder / a user "
-                                            "CSV (columns t_s, vessel, north_m, east_m[, course_deg, speed_mps])")
+                                            "CSV (columns t_s, vessel, north_m, east_m[, course_deg, speed_mps]) / "
+                                            "an AIS-style CSV (columns timestamp, MMSI, lat, lon[, SOG, COG])")
     p.add_argument("--preset", choices=tuple(PRESETS), default=None,
                    help="parameter preset (default: a run's stored evaluation settings, else 'default', the "
                         "open-water values; inland_small: Mahipala & Johansen 2024, Table V)")
@@ -49,7 +51,12 @@ def add_evaluate_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE", dest="overrides",
                    help="override one EvalParams field after the scaling (repeatable), e.g. r_stage2_m=300; on a "
                         "run's stored settings too")
-    p.add_argument("--own", default=None, help="name of the own-ship (default: the file's own-ship / first vessel)")
+    p.add_argument("--own", "--own-mmsi", default=None, dest="own",
+                   help="the own-ship: its name, or its MMSI in an AIS-style file (default: the file's own-ship / "
+                        "first vessel; required for an AIS-style file with several vessels)")
+    p.add_argument("--dt", type=float, default=None, metavar="SECONDS",
+                   help="AIS-style files only: step of the common clock the vessels' reports are resampled onto "
+                        "(default 1 s)")
     p.add_argument("--pairs", choices=PAIR_MODES, default="own",
                    help="own: own-ship against every other vessel (default); all: every ordered pair")
     p.add_argument("--out", default=None, help="write the scores as JSON to this file (atomically; an existing "
@@ -200,6 +207,8 @@ def run_evaluate(args, parser: argparse.ArgumentParser) -> int:
         _overrides(args)
         if args.range_scale is not None and not (math.isfinite(args.range_scale) and args.range_scale > 0):
             raise ValueError(f"--range-scale must be a finite number > 0, got {args.range_scale:g}")
+        if args.dt is not None and not (math.isfinite(args.dt) and args.dt > 0):
+            raise ValueError(f"--dt must be a finite number of seconds > 0, got {args.dt:g}")
     except ValueError as exc:
         parser.error(str(exc))
     if args.out:
@@ -218,7 +227,7 @@ def run_evaluate(args, parser: argparse.ArgumentParser) -> int:
         except ValueError as exc:
             parser.error(str(exc) if stored is None else f"{path}: {exc}")
         try:
-            runs = load_runs(path, own=args.own)
+            runs = load_runs(path, own=args.own, dt=args.dt)
             evs = [evaluate_tracks(tr, params, pairs=args.pairs) for tr in runs]
         except (OSError, ValueError, KeyError) as exc:
             text = str(exc)
@@ -238,6 +247,11 @@ def run_evaluate(args, parser: argparse.ArgumentParser) -> int:
         agg = aggregate(evs)
         print(f"{path}: {len(evs)} run(s), {agg['encounters']} encounter(s)")
         print(f"  ranges: {ranges_line(params)} (from {source})")
+        if runs[0].t0_utc is not None:
+            tr = runs[0]
+            print(f"  AIS reports of {tr.n_vessels} vessels (MMSI {', '.join(tr.names)}) resampled every "
+                  f"{tr.t[1] - tr.t[0]:g} s over their common period: t = 0 s is {tr.t0_utc}, t = {tr.t[-1]:g} s "
+                  f"the end (reports outside it are not scored; -v counts them); own-ship {tr.own_name}")
         for r, ev in enumerate(evs):
             for e in ev.encounters:
                 print(encounter_line(r, e))
@@ -247,7 +261,7 @@ def run_evaluate(args, parser: argparse.ArgumentParser) -> int:
                   f"S_sit mean {_fmt(sc['S_sit']['mean'])} (min {_fmt(sc['S_sit']['min'])}), S_safety mean "
                   f"{_fmt(sc['S_safety']['mean'])} (min {_fmt(sc['S_safety']['min'])}); situations {pair['situations']}")
         docs.append({"path": str(path), "params": params.as_dict(), "params_from": source, "aggregate": agg,
-                     "runs": [ev.to_dict() for ev in evs]})
+                     "runs": [ev.to_dict() for ev in evs]} | ({"t0_utc": runs[0].t0_utc} if runs[0].t0_utc else {}))
     if args.out:
         same = all(d["params"] == docs[0]["params"] for d in docs)
         doc = {"schema": OUTPUT_SCHEMA, "params": docs[0]["params"] if same else None, "pairs": args.pairs,

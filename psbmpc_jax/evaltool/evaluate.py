@@ -84,9 +84,10 @@ def evaluate_tracks(tracks: Tracks, params: EvalParams | str | None = "default",
 
 
 def evaluate_file(path, params: EvalParams | str | None = "default", *, own=None, pairs: str = "own",
-                  **overrides) -> list[Evaluation]:
-    """Evaluate every run of a trajectory file (a user CSV, or the simulator's ``trajectories.npz`` /
-    ``.csv`` or its output folder; see :func:`psbmpc_jax.evaltool.load_runs`): one :class:`Evaluation` per
-    run (a user CSV has one)."""
+                  dt: float | None = None, **overrides) -> list[Evaluation]:
+    """Evaluate every run of a trajectory file (a user CSV, an AIS-style CSV, or the simulator's
+    ``trajectories.npz`` / ``.csv`` or its output folder; see :func:`psbmpc_jax.evaltool.load_runs`, which
+    ``own`` and ``dt`` are passed to): one :class:`Evaluation` per run (a CSV has one)."""
     p = get_params(params, **overrides)
-    return [evaluate_tracks(tr, p, own=own, pairs=pairs) for tr in load_runs(path, own=own)]
+    runs = load_runs(path, own=own, dt=dt)
+    return [evaluate_tracks(tr, p, pairs=pairs) for tr in runs]

@@ -1,6 +1,6 @@
 """Recorded trajectories: the :class:`Tracks` container, its validation, resampling, and file loading.
 
-Two file kinds are read by :func:`load_tracks` / :func:`load_runs`:
+Three file kinds are read by :func:`load_tracks` / :func:`load_runs` (a CSV's kind is told by its header):
 
 * the simulator's export (``trajectories.npz`` / ``trajectories.csv`` of ``psbmpc-jax run
   --save-trajectories``, or the folder holding them), read with :func:`psbmpc_jax.sim.output.load_trajectories`;
@@ -18,7 +18,9 @@ Two file kinds are read by :func:`load_tracks` / :func:`load_runs`:
   columns are optional (both or neither); without them course and speed are derived from the positions.  The
   vessels' rows may interleave in any way, but each vessel's times must be strictly increasing down the file,
   and every vessel needs the same times (at least two).  Extra columns are ignored; blank lines and lines
-  starting with ``#`` are skipped.
+  starting with ``#`` are skipped;
+* an AIS-style CSV (``timestamp,MMSI,lat,lon[,SOG,COG]``, irregular per-vessel reports): resampled onto a common
+  clock and projected to local metres by :mod:`psbmpc_jax.evaltool.ais`.
 """
 
 from __future__ import annotations
@@ -60,6 +62,8 @@ class Tracks:
         names: V vessel names (unique).
         own: index of the own-ship.
         source: where the tracks came from (file name and run), for reports.
+        t0_utc: the clock time of t = 0 (ISO 8601 UTC, or Unix seconds) for tracks read from an AIS-style
+            file, else None.
     """
 
     t: np.ndarray
@@ -70,6 +74,7 @@ class Tracks:
     names: tuple
     own: int = 0
     source: str | None = None
+    t0_utc: str | None = None
 
     def __post_init__(self):
         _validate_tracks(self)
@@ -120,7 +125,7 @@ class Tracks:
 
         course = np.stack([unwrap_interp(tk, self.t, row) for row in self.course])
         return Tracks(t=tk, north=lin(self.north), east=lin(self.east), course=course, speed=lin(self.speed),
-                      names=self.names, own=self.own, source=self.source)
+                      names=self.names, own=self.own, source=self.source, t0_utc=self.t0_utc)
 
 
 def unwrap_interp(tk, t, angle) -> np.ndarray:
@@ -253,14 +258,18 @@ def own_index(own, names) -> int:
 
 
 # ------------------------------------------------------------------------------------------------ loading
-def load_runs(path, own=None) -> list[Tracks]:
+def load_runs(path, own=None, dt: float | None = None) -> list[Tracks]:
     """Every run in a trajectory file, one :class:`Tracks` each.
 
     Args:
-        path: a user CSV file (:data:`USER_COLUMNS`), or the simulator's ``trajectories.npz`` /
-            ``trajectories.csv`` (or the folder holding them).
+        path: a user CSV file (:data:`USER_COLUMNS`), an AIS-style CSV (:mod:`psbmpc_jax.evaltool.ais`), or the
+            simulator's ``trajectories.npz`` / ``trajectories.csv`` (or the folder holding them).
         own: the own-ship, by name or index (default: the first vessel: ship 0 of a simulator export, the
-            vessel of the first data row of a user CSV).
+            vessel of the first data row of a user CSV); the MMSI for an AIS file (required there when it has
+            several vessels).
+        dt: the common clock's step [s] for an AIS file (default
+            :data:`psbmpc_jax.evaltool.ais.DEFAULT_DT_S`); refused for the other kinds, which have their own
+            sample times.
 
     Raises:
         FileNotFoundError: no such file.
@@ -268,16 +277,23 @@ def load_runs(path, own=None) -> list[Tracks]:
     """
     p = pathlib.Path(path)
     if p.is_dir() or p.suffix == ".npz" or (p.suffix == ".csv" and p.is_file() and _is_sim_csv(p)):
+        _no_dt(p, dt, "a simulator export")
         return _load_sim(p, own)
     if not p.is_file():
         raise FileNotFoundError(f"trajectory file not found: {p}")
-    return [_load_user_csv(p, own)]
+    return [_load_csv(p, own, dt)]
 
 
-def load_tracks(path, own=None, run: int = 0) -> Tracks:
+def _no_dt(p, dt, kind: str) -> None:
+    if dt is not None:
+        raise ValueError(f"{p}: dt (--dt) sets the common clock of AIS-style files only; this is {kind}, whose "
+                         f"sample times are used as they are")
+
+
+def load_tracks(path, own=None, run: int = 0, dt: float | None = None) -> Tracks:
     """One run of a trajectory file (see :func:`load_runs`; ``run`` picks the Monte Carlo run of a simulator
     export, a user CSV has only run 0)."""
-    runs = load_runs(path, own=own)
+    runs = load_runs(path, own=own, dt=dt)
     if not 0 <= run < len(runs):
         raise ValueError(f"{path}: run {run} out of range: the file has {len(runs)} run(s)")
     return runs[run]
@@ -311,13 +327,31 @@ def tracks_from_simulation(sim, own=None, source: str | None = None) -> list[Tra
                    names=names, own=own_i, source=f"{label} run {r}") for r, s in enumerate(states)]
 
 
-def _load_user_csv(p: pathlib.Path, own) -> Tracks:
+def _load_csv(p: pathlib.Path, own, dt) -> Tracks:
+    """A user CSV in local metres or an AIS-style CSV, told apart by the header."""
+    from . import ais
+
     header, rows = _read_csv(p)
     col = {h: i for i, h in enumerate(header)}
     missing = [c for c in USER_COLUMNS if c not in col]
-    if missing:
-        raise ValueError(f"{p}: missing column(s) {', '.join(missing)}; expected the header "
-                         f"{','.join(USER_COLUMNS)}[,{','.join(OPTIONAL_COLUMNS)}] (got {','.join(header)})")
+    if not missing:
+        _no_dt(p, dt, "a north/east track file")
+        return _load_user_csv(p, header, rows, own)
+    try:
+        found = ais.ais_columns(header)
+    except ValueError as exc:
+        raise ValueError(f"{p}: {exc}") from None
+    if found is not None:
+        return ais.load_ais_csv(p, header, rows, own=own, dt=dt)
+    raise ValueError(
+        f"{p}: the header fits neither accepted format: north/east tracks need "
+        f"{','.join(USER_COLUMNS)}[,{','.join(OPTIONAL_COLUMNS)}] (missing column(s) {', '.join(missing)}); "
+        f"AIS-style tracks need {','.join(ais.AIS_COLUMNS)}[,{','.join(ais.AIS_OPTIONAL_COLUMNS)}] (missing "
+        f"column(s) {', '.join(ais.missing_columns(header))}); got {','.join(header)}")
+
+
+def _load_user_csv(p: pathlib.Path, header, rows, own) -> Tracks:
+    col = {h: i for i, h in enumerate(header)}
     have_opt = [c in col for c in OPTIONAL_COLUMNS]
     if any(have_opt) and not all(have_opt):
         raise ValueError(f"{p}: give both optional columns {' and '.join(OPTIONAL_COLUMNS)}, or neither")
@@ -345,7 +379,8 @@ def _read_csv(p: pathlib.Path) -> tuple[list[str], list[tuple[int, list[str]]]]:
     lines = [(i, row) for i, row in enumerate(csv.reader(io.StringIO(text, newline="")), start=1)
              if row and any(c.strip() for c in row) and not row[0].lstrip().startswith("#")]
     if not lines:
-        raise ValueError(f"{p}: empty file; expected the header {','.join(USER_COLUMNS)}")
+        raise ValueError(f"{p}: empty file; expected a header: {','.join(USER_COLUMNS)} or "
+                         f"timestamp,MMSI,lat,lon")
     header = [h.strip() for h in lines[0][1]]
     return header, lines[1:]
 

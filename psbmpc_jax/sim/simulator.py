@@ -23,6 +23,7 @@ replays identically whatever the number of runs simulated with it.
 from __future__ import annotations
 
 import dataclasses
+import logging
 import sys
 import time
 from dataclasses import dataclass, field
@@ -126,11 +127,15 @@ def grid_region(scenario: Scenario, routes) -> tuple:
     return (tuple(pts.min(axis=0) - pad), tuple(pts.max(axis=0) + pad)), reach
 
 
+log = logging.getLogger(__name__)
+
+
 class _Progress:
     """Progress of one simulation on stderr: one tick per MPC update (per simulation step when no ship runs
     PSB-MPC), with an ETA taken from the ticks after the first -- the first update compiles the solver, so its
     time says nothing about the rest.  Uses ``tqdm`` when it is installed, else a plain bar: a live line on a
-    terminal, four lines (25 %, 50 %, ...) in a log file."""
+    terminal, four lines (25 %, 50 %, ...) in a log file.  The start, the end of the compiling first update and
+    the end go to the module's logger too (INFO), with the bar or without it."""
 
     def __init__(self, total: int, label: str, enabled: bool, *, unit: str = "MPC updates",
                  first_compiles: bool = True):
@@ -141,6 +146,7 @@ class _Progress:
         self.done, self.last_pct, self.last_draw = 0, -1, 0.0
         self.tty = sys.stderr.isatty()
         self.bar = None
+        log.info("%s: %d %s%s", label, self.total, unit, "; the first compiles the solver" if first_compiles else "")
         if not enabled:
             return
         try:
@@ -148,8 +154,11 @@ class _Progress:
         except ImportError:
             tqdm = None
         if tqdm is not None:
+            # smoothing 0: the mean rate since the (re)start, as eta(); into a log file (no terminal) a line at
+            # most every 10 s instead of ten a second
             self.bar = tqdm(total=self.total, desc=label, unit=unit.split()[-1].rstrip("s") or "it",
-                            file=sys.stderr, dynamic_ncols=True, leave=True, smoothing=0.1)
+                            file=sys.stderr, dynamic_ncols=True, leave=True, smoothing=0.0,
+                            mininterval=0.1 if self.tty else 10.0)
             if first_compiles:
                 self.bar.set_postfix_str("first update compiles the solver")
         else:
@@ -167,10 +176,15 @@ class _Progress:
 
     def update(self, done: int) -> None:
         """``done`` ticks of ``total`` finished."""
-        if not self.enabled or done <= self.done:
+        if done <= self.done:
             return
         if self.t_first is None:
             self.t_first = time.perf_counter()
+            if self.first_compiles:
+                log.info("%s: first update (compiling) took %.1f s", self.label, self.t_first - self.t0)
+        if not self.enabled:
+            self.done = min(int(done), self.total)
+            return
         prev, self.done = self.done, min(int(done), self.total)
         if self.bar is not None:
             if self.first_compiles and prev == 0:
@@ -213,6 +227,8 @@ class _Progress:
         sys.stderr.flush()
 
     def close(self) -> None:
+        log.info("%s: %d of %d %s in %.1f s", self.label, self.done, self.total, self.unit,
+                 time.perf_counter() - self.t0)
         if self.bar is not None:
             self.bar.close()
         elif self.enabled and self.tty and self.done < self.total:
