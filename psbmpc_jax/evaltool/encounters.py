@@ -271,7 +271,8 @@ def _stage(ctx: PairContext, x: int) -> tuple[dict, list[Term]]:
     if man is None:
         why = f"no manoeuvre overlaps stage {x}: 0 (man_{x} = 0)"
     else:
-        why = (f"manoeuvre ({_man_text(man)}) from stage-{x} sample k={man.start} overlaps stage {x} (man_{x} = 1): "
+        why = (f"manoeuvre ({_man_text(man)}, starting in stage {int(ctx.stage[man.start])}) overlaps stage {x} "
+               f"(man_{x} = 1): "
                f"{'min(1' if sign == '+' else 'max(0'}, {p.gamma_so_delta_chi:g}·{p_chi:.4f} + "
                f"{p.gamma_so_delta_u_up:g}·{p_up:.4f} + {p.gamma_so_delta_u_down:g}·{p_down:.4f} {sign} {comp:g})")
     terms = [
