@@ -174,7 +174,7 @@ def main(argv=None) -> int:
                     x = explain_encounter(ev, e, r)
                     rows.setdefault(e.other, []).append(facts(ev, e, x))
                     if r == 0:
-                        plot_explanation(ev, e, x, writer.path(f"{name}_run0_{e.other}.png"), dpi=80)
+                        plot_explanation(ev, e, x, writer.path(f"{name}_run0_{e.other}.png"), dpi=70)
             for other, rs in rows.items():
                 summary[name, other] = summarise(rs)
             doc[name] = {"params": params.as_dict(), "scores_checked": checked[name],
