@@ -1,7 +1,9 @@
 """Encounter detection (SPEC_EVALTOOL §2.2) and the scoring of one encounter (SPEC §3).
 
 :func:`find_windows` splits the samples of one ordered pair (i, j) into encounters: one per entry of the range
-into the stage-2 disc.  :func:`score_window` computes every applicable score of one encounter.
+into the stage-2 disc.  :func:`score_window` computes every applicable score of one encounter and records each
+as a :class:`~psbmpc_jax.evaltool.results.Term` (value, the sample that fired it, the condition), the basis of
+:mod:`psbmpc_jax.evaltool.explain`; :func:`compose` builds the situation scores from the penalties.
 """
 
 from __future__ import annotations
