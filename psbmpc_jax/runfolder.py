@@ -131,8 +131,8 @@ def _legacy_outputs(folder: pathlib.Path) -> list[str]:
 
 def _describe(doc: dict) -> str:
     state = "complete" if doc.get("complete") else "incomplete: interrupted while it was written"
-    return (f"run {doc['run_id']} of scenario {doc.get('scenario')!r}, created {doc.get('created_utc', '?')}, "
-            f"{state}")
+    what = f"scenario {doc['scenario']!r}" if doc.get("scenario") else f"{doc.get('command', 'unknown command')!r}"
+    return f"run {doc['run_id']} of {what}, created {doc.get('created_utc', '?')}, {state}"
 
 
 def run_folder_problem(folder, *, force: bool = False, option: str = "--out") -> str | None:

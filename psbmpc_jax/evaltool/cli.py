@@ -12,6 +12,12 @@ evaluation settings stored with the run (``metrics.json``: the scenario's ``eval
 from, one line per encounter (run, vessels, situation, status, CPA range, S_sit, S_safety, the penalties that
 apply) and the summary over runs per pair of vessels; ``--out`` writes everything as JSON (atomically; never
 over an input file or a file of a run folder it reads, nor over another file unless ``--force``).
+
+``--explain`` prints, per encounter, the stages, the manoeuvres, the CPA and every score and penalty with its
+value, when it fired and why (:mod:`psbmpc_jax.evaltool.explain`); ``--out`` is then a folder that receives
+``explain.json`` (with the evaluation settings), ``explain.txt`` and one figure per encounter, written as a
+run folder (:mod:`psbmpc_jax.runfolder`: staged, manifest last; another run's folder only with ``--force``,
+never an input's folder).
 Exit status 2 (with a message naming the file) for a file that cannot be read or scored.
 """
 
@@ -24,9 +30,10 @@ import math
 import pathlib
 import sys
 
-from ..safe_io import atomic_write_text, file_output_problem, same_file
+from ..safe_io import OutputError, atomic_write_text, file_output_problem, same_file
 from .aggregate import aggregate
 from .evaluate import PAIR_MODES, evaluate_tracks
+from .explain import EXPLAIN_SCHEMA, explain_encounter, explanation_text
 from .params import PRESETS, EvalParams, scaled_params
 from .tracks import load_runs
 
@@ -61,7 +68,11 @@ def add_evaluate_arguments(p: argparse.ArgumentParser) -> None:
                    help="own: own-ship against every other vessel (default); all: every ordered pair")
     p.add_argument("--out", default=None, help="write the scores as JSON to this file (atomically; an existing "
                                                "file is replaced only if it is an earlier evaluate output)")
-    p.add_argument("--force", action="store_true", help="let --out replace an existing file of another kind")
+    p.add_argument("--force", action="store_true", help="let --out replace an existing file of another kind (with "
+                                                        "--explain: the files of an earlier output folder)")
+    p.add_argument("--explain", action="store_true",
+                   help="explain every score: stages, manoeuvres, CPA and each penalty with its value, time and "
+                        "condition; with --out FOLDER also explain.json, explain.txt and one figure per encounter")
 
 
 def _value(field: dataclasses.Field, text: str):
@@ -190,6 +201,53 @@ def output_problem(out, paths, force: bool = False) -> str | None:
     return None
 
 
+def explain_out_problem(out, paths, force: bool = False) -> str | None:
+    """Why ``--out`` cannot be the ``--explain`` folder, or None: it is a file, it is (or holds) an input or
+    the folder of one, or it holds another run's results and ``force`` is not given
+    (:func:`psbmpc_jax.runfolder.run_folder_problem`)."""
+    import os
+
+    from ..runfolder import run_folder_problem
+
+    o = pathlib.Path(out).expanduser()
+    if o.exists() and not o.is_dir():
+        return (f"--out {out}: with --explain, --out is a folder (explain.json, explain.txt and the figures go "
+                f"there), and {o} is a file")
+    real = os.path.realpath(o)
+    for path in paths:
+        p = pathlib.Path(path).expanduser()
+        folder = p if p.is_dir() else p.parent
+        inside = os.path.commonpath([real, os.path.realpath(p)]) == real
+        if same_file(o, folder) or inside:
+            return (f"--out {out}: that folder holds {path}, which this command reads; choose another folder for "
+                    f"the explanation")
+    return run_folder_problem(o, force=force)
+
+
+def _slug(name: str) -> str:
+    return "".join(c if c.isalnum() or c in "-_" else "_" for c in str(name))[:40] or "_"
+
+
+def write_explanations(out, doc: dict, text: str, figures: list, force: bool = False) -> dict:
+    """Write the ``--explain`` folder ``out``: ``explain.json`` (``doc``), ``explain.txt`` (``text``) and one
+    figure per ``(Evaluation, Encounter, explanation, file name)`` of ``figures``, as a run folder (staged,
+    the manifest last; :class:`psbmpc_jax.runfolder.RunWriter`).  Returns ``{name: path}``."""
+    from ..runfolder import RunWriter
+    from .explain_plot import plot_explanation
+
+    w = RunWriter(out, force=force, meta={"command": "psbmpc-jax evaluate --explain", "schema_of_content":
+                                          doc["schema"]})
+    try:
+        atomic_write_text(w.path("explain.json"), json.dumps(doc, indent=1) + "\n")
+        atomic_write_text(w.path("explain.txt"), text + "\n")
+        for ev, e, x, name in figures:
+            plot_explanation(ev, e, x, w.path(name))
+        return w.commit()
+    except BaseException:
+        w.abort()
+        raise
+
+
 def _fmt(v, nd: int = 2) -> str:
     return "—" if v is None else f"{v:.{nd}f}"
 
@@ -212,10 +270,13 @@ def run_evaluate(args, parser: argparse.ArgumentParser) -> int:
     except ValueError as exc:
         parser.error(str(exc))
     if args.out:
-        problem = output_problem(args.out, args.paths, force=args.force)
+        if args.explain:
+            problem = explain_out_problem(args.out, args.paths, force=args.force)
+        else:
+            problem = output_problem(args.out, args.paths, force=args.force)
         if problem:
             parser.error(problem)
-    docs = []
+    docs, texts, figures = [], [], []
     for path in args.paths:
         try:
             stored = stored_params(path)
@@ -252,16 +313,42 @@ def run_evaluate(args, parser: argparse.ArgumentParser) -> int:
             print(f"  AIS reports of {tr.n_vessels} vessels (MMSI {', '.join(tr.names)}) resampled every "
                   f"{tr.t[1] - tr.t[0]:g} s over their common period: t = 0 s is {tr.t0_utc}, t = {tr.t[-1]:g} s "
                   f"the end (reports outside it are not scored; -v counts them); own-ship {tr.own_name}")
+        explained = []
         for r, ev in enumerate(evs):
-            for e in ev.encounters:
-                print(encounter_line(r, e))
+            for n, e in enumerate(ev.encounters):
+                if not args.explain:
+                    print(encounter_line(r, e))
+                    continue
+                x = explain_encounter(ev, e, r)
+                x["figure"] = (f"explain_f{len(docs)}_run{r:03d}_{n:02d}_{_slug(e.vessel)}_vs_{_slug(e.other)}.png"
+                               if args.out else None)
+                texts.append(explanation_text(x))
+                print(texts[-1] + "\n")
+                if args.out:
+                    figures.append((ev, e, x, x["figure"]))
+                explained.append(x)
         for pair in agg["pairs"]:
             sc = pair["scores"]
             print(f"  {pair['vessel']} vs {pair['other']} over {pair['runs_with_encounter']} run(s): "
                   f"S_sit mean {_fmt(sc['S_sit']['mean'])} (min {_fmt(sc['S_sit']['min'])}), S_safety mean "
                   f"{_fmt(sc['S_safety']['mean'])} (min {_fmt(sc['S_safety']['min'])}); situations {pair['situations']}")
+        if args.explain:
+            docs.append({"path": str(path), "params": params.as_dict(), "params_from": source, "aggregate": agg,
+                         "encounters": explained} | ({"t0_utc": runs[0].t0_utc} if runs[0].t0_utc else {}))
+            continue
         docs.append({"path": str(path), "params": params.as_dict(), "params_from": source, "aggregate": agg,
                      "runs": [ev.to_dict() for ev in evs]} | ({"t0_utc": runs[0].t0_utc} if runs[0].t0_utc else {}))
+    if args.out and args.explain:
+        same = all(d["params"] == docs[0]["params"] for d in docs)
+        doc = {"schema": EXPLAIN_SCHEMA, "params": docs[0]["params"] if same else None, "pairs": args.pairs,
+               "files": docs}
+        try:
+            written = write_explanations(args.out, doc, "\n\n".join(texts), figures, force=args.force)
+        except (OSError, OutputError, ValueError) as exc:
+            print(f"psbmpc-jax evaluate: --out {args.out}: {exc}", file=sys.stderr)
+            return 2
+        print(f"wrote {args.out}: explain.json, explain.txt and {len(written) - 2} figure(s)")
+        return 0
     if args.out:
         same = all(d["params"] == docs[0]["params"] for d in docs)
         doc = {"schema": OUTPUT_SCHEMA, "params": docs[0]["params"] if same else None, "pairs": args.pairs,
@@ -278,4 +365,4 @@ def run_evaluate(args, parser: argparse.ArgumentParser) -> int:
 
 
 __all__ = ["add_evaluate_arguments", "params_from_args", "run_evaluate", "encounter_line", "stored_params",
-           "output_problem", "ranges_line", "OUTPUT_SCHEMA"]
+           "output_problem", "explain_out_problem", "write_explanations", "ranges_line", "OUTPUT_SCHEMA"]

@@ -74,13 +74,14 @@ def evaluate_tracks(tracks: Tracks, params: EvalParams | str | None = "default",
         g = geo[i, j]
         st = stages(g.r, p)
         for w in windows[i, j]:
-            spans = [(a, b) for other, a, b in give_way_spans[i] if other != j]
+            spans = [(tr.names[other], a, b) for other, a, b in give_way_spans[i] if other != j]
             ctx = PairContext(w=w, g=g, stage=st, course=tr.course[i], speed=tr.speed[i], maneuvers=man[i],
                        give_way_spans=spans, p=p)
             d = dcpa(tr.north, tr.east, tr.course, tr.speed, i, j, w.k_s)
             encounters.append(score_window(ctx, tr.names, tr.t, d))
     return Evaluation(params=p, names=tr.names, own=own_i, t=tr.t, pairs=pairs, encounters=tuple(encounters),
-                      maneuvers={tr.names[v]: tuple(man[v]) for v in range(tr.n_vessels)}, source=tracks.source)
+                      maneuvers={tr.names[v]: tuple(man[v]) for v in range(tr.n_vessels)}, source=tracks.source,
+                      resampled=tr)
 
 
 def evaluate_file(path, params: EvalParams | str | None = "default", *, own=None, pairs: str = "own",

@@ -14,7 +14,7 @@ import numpy as np
 from .maneuvers import Maneuver
 from .params import EvalParams
 
-__all__ = ["EncounterScores", "Encounter", "Evaluation", "SCORE_NAMES", "STATUSES"]
+__all__ = ["EncounterScores", "Term", "Encounter", "Evaluation", "SCORE_NAMES", "STATUSES"]
 
 #: Encounter statuses: ``scored`` (every applicable score computed), ``nar`` (no applicable rule: only the
 #: safety scores), ``no_risk`` (risk gate: only the safety scores), ``incomplete`` (the CPA is the last sample
@@ -73,6 +73,33 @@ SCORE_NAMES = tuple(f.name for f in fields(EncounterScores))
 
 
 @dataclass(frozen=True)
+class Term:
+    """One score or penalty of an encounter as the scoring computed it, with what made it fire.
+
+    Attributes:
+        name: the key in :class:`EncounterScores` (``"P_delay"``, ``"S_r"`` ...).
+        value: its value (the same number as in the scores).
+        k: the sample index (evaluation grid) of the event that set it -- the manoeuvre start for P_delay,
+            the sample of the largest course deviation for P_na_delta_chi ... -- or None when nothing fired.
+        why: the condition that decided it, in words with the numbers used.
+        data: the inputs of its formula (angles in degrees, ranges in metres, times in seconds).
+    """
+
+    name: str
+    value: float
+    k: int | None
+    why: str
+    data: dict = field(default_factory=dict)
+
+    def to_dict(self, t: np.ndarray | None = None) -> dict:
+        d = {"name": self.name, "value": _num(self.value), "k": None if self.k is None else int(self.k),
+             "why": self.why, "data": {key: _jsonable(v) for key, v in self.data.items()}}
+        if t is not None:
+            d["t_s"] = None if self.k is None else float(t[self.k])
+        return d
+
+
+@dataclass(frozen=True)
 class Encounter:
     """One encounter of vessel ``vessel`` (evaluated) with vessel ``other``.
 
@@ -90,6 +117,9 @@ class Encounter:
             [k_start, k_cpa]), None if none or not give-way; r_maneuver its start range [m].
         dcpa_start: constant-velocity distance at CPA predicted at the encounter start [m].
         scores: :class:`EncounterScores`.
+        terms: every score and penalty computed, as :class:`Term` (value, the sample that fired it, the
+            condition), in the order the scoring computed them; the explanation of the score
+            (:mod:`psbmpc_jax.evaltool.explain`).  Not part of :meth:`to_dict`.
     """
 
     vessel: str
@@ -114,6 +144,7 @@ class Encounter:
     maneuver: Maneuver | None = None
     r_maneuver: float | None = None
     scores: EncounterScores = field(default_factory=EncounterScores)
+    terms: tuple = ()
 
     @property
     def score(self) -> float | None:
@@ -148,6 +179,7 @@ class Evaluation:
         encounters: every encounter found, ordered by evaluated vessel, other vessel, time.
         maneuvers: per vessel name, the detected manoeuvres.
         source: where the tracks came from.
+        resampled: the tracks on the evaluation grid (what was scored; for explanations and figures).
     """
 
     params: EvalParams
@@ -158,6 +190,7 @@ class Evaluation:
     encounters: tuple
     maneuvers: dict
     source: str | None = None
+    resampled: object | None = None
 
     def of(self, vessel: str | None = None, other: str | None = None) -> list[Encounter]:
         """The encounters of ``vessel`` (default: the own-ship) with ``other`` (default: any)."""
@@ -174,6 +207,16 @@ class Evaluation:
             "maneuvers": {name: [m.to_dict(self.t) for m in ms] for name, ms in self.maneuvers.items()},
             "encounters": [e.to_dict(self.t) for e in self.encounters],
         }
+
+
+def _jsonable(v):
+    """A JSON-ready copy of a term's datum: numbers through :func:`_num`, strings, bools and None as they are,
+    lists element-wise."""
+    if v is None or isinstance(v, (str, bool)):
+        return v
+    if isinstance(v, (list, tuple)):
+        return [_jsonable(x) for x in v]
+    return _num(v)
 
 
 def _num(v):
