@@ -23,7 +23,7 @@ import math
 
 import numpy as np
 
-__all__ = ["KEY_COLUMNS", "simulation_rows", "rows_frame"]
+__all__ = ["KEY_COLUMNS", "EXECUTION_COLUMNS", "simulation_rows", "rows_frame", "comparable"]
 
 #: The columns that identify a row: one row per scenario x method x seed x run x ship.
 KEY_COLUMNS = ("scenario", "method", "seed", "run", "ship")
@@ -176,3 +176,15 @@ def rows_frame(rows: list[dict]):
         else:
             data[c] = np.array([np.nan if v is None else float(v) for v in vals], dtype="float64")
     return pd.DataFrame(data, columns=cols)
+
+
+#: Columns that depend on how and when a row was computed, not on the simulation: wall-clock solve times, the
+#: task that held the run (it depends on ``chunk_runs``) and the package's commit.
+EXECUTION_COLUMNS = ("task_id", "commit", "run_solve_time_mean_s", "run_solve_time_max_s", "run_solve_time_p95_s")
+
+
+def comparable(frame):
+    """``frame`` without :data:`EXECUTION_COLUMNS`, columns sorted by name and rows by :data:`KEY_COLUMNS`: two
+    executions of one campaign (other engines, other ``chunk_runs``, a resume) give equal frames."""
+    df = frame.drop(columns=[c for c in EXECUTION_COLUMNS if c in frame.columns])
+    return df[sorted(df.columns)].sort_values(list(KEY_COLUMNS)).reset_index(drop=True)

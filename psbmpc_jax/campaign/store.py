@@ -58,8 +58,9 @@ def read_campaign(folder) -> dict | None:
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise CampaignError(f"{p}: cannot be read as a campaign file ({exc})") from None
     if not isinstance(doc, dict) or doc.get("schema") != SCHEMA:
-        raise CampaignError(f"{p}: not a psbmpc-jax campaign file (schema {doc.get('schema') if isinstance(doc, dict) else None!r}, "
-                            f"expected {SCHEMA!r}); it is not overwritten")
+        schema = doc.get("schema") if isinstance(doc, dict) else None
+        raise CampaignError(f"{p}: not a psbmpc-jax campaign file (schema {schema!r}, expected {SCHEMA!r}); it is "
+                            f"not overwritten")
     return doc
 
 
