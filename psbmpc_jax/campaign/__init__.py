@@ -5,6 +5,7 @@ from .definition import (CampaignDefinition, Task, definition_from_dict, definit
                          tasks)
 from .executor import ENGINES, run_local, run_ray, run_task
 from .merge import merge_folders
+from .runner import run_campaign
 from .rows import EXECUTION_COLUMNS, KEY_COLUMNS, comparable, rows_frame, simulation_rows
 from .store import CampaignError, assemble, prepare_folder, read_campaign, task_done, verified_table
 
@@ -14,9 +15,3 @@ __all__ = ["CampaignDefinition", "Task", "definition_from_dict", "definition_has
            "simulation_rows", "CampaignError", "assemble", "prepare_folder", "read_campaign", "task_done",
            "verified_table", "run_campaign"]
 
-
-def run_campaign(*args, **kwargs):
-    """:func:`psbmpc_jax.campaign.runner.run_campaign` (imported on use)."""
-    from .runner import run_campaign as _run
-
-    return _run(*args, **kwargs)
