@@ -66,3 +66,25 @@ def test_damaged_task_file_runs_again(reference, tmp_path):
     res = run_campaign(definition_from_dict(SPEC), out)
     assert res["ran"] == 1 and res["skipped"] == N_TASKS - 1
     pd.testing.assert_frame_equal(comparable(pd.read_parquet(out / RUNS_FILE)), comparable(reference))
+
+
+def test_changed_scenario_file_or_code_fails_the_task_not_the_table(tmp_path, monkeypatch):
+    """A scenario file edited after the campaign was defined, or a worker on another version of the code, makes
+    its tasks fail with the reason; nothing is written for them."""
+    from psbmpc_jax.campaign import definition as d
+    from psbmpc_jax.campaign.executor import run_task
+    from psbmpc_jax.campaign.store import prepare_folder
+
+    sc = tmp_path / "mine.yaml"
+    sc.write_text(d.scenario_path("head_on").read_text())
+    resolved = d.resolve(definition_from_dict({**SPEC, "scenarios": [str(sc)], "runs": 1}))
+    doc = prepare_folder(tmp_path / "c", resolved)
+    task = d.tasks(resolved)[0]
+    sc.write_text(sc.read_text() + "\n# edited\n")
+    with pytest.raises(RuntimeError, match="scenario file .*mine.yaml changed since the campaign was defined"):
+        run_task(tmp_path / "c", task, doc)
+    sc.write_text(d.scenario_path("head_on").read_text())
+    monkeypatch.setattr("psbmpc_jax.provenance.commit", lambda: "0" * 40)
+    with pytest.raises(RuntimeError, match="rows would mix two versions of the code"):
+        run_task(tmp_path / "c", task, doc)
+    assert not list((tmp_path / "c" / "tasks").iterdir())

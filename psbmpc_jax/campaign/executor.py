@@ -14,6 +14,7 @@ Every engine writes the same rows (the task's rows do not depend on where it ran
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import json
 import os
 import pathlib
@@ -23,7 +24,7 @@ import sys
 import threading
 import time
 
-from .definition import Task, tasks
+from .definition import Task, scenario_path, tasks
 from .store import read_campaign, write_task
 
 __all__ = ["ENGINES", "run_task", "run_local", "run_ray", "ray_missing_message"]
@@ -40,16 +41,31 @@ def run_task(folder, task: Task, doc: dict) -> dict:
     from ..sim.output import safe_colregs_evaluation
     from .rows import rows_frame, simulation_rows
 
+    from .. import __version__
+    from ..provenance import commit
+
     t0 = time.perf_counter()
     d = doc["resolved"]["definition"]
+    pkg = doc["resolved"]["package"]
+    here = {"version": __version__, "commit": commit()}
+    if here != pkg:
+        raise RuntimeError(f"task {task.task_id}: this process runs psbmpc-jax {here['version']} at commit "
+                           f"{here['commit']}, but the campaign was defined with {pkg['version']} at commit "
+                           f"{pkg['commit']}; its rows would mix two versions of the code. Run every worker with "
+                           f"the campaign's version (or start a new campaign folder)")
+    rec = next(s for s in d["scenarios"] if s["item"] == task.scenario)
+    now = hashlib.sha256(scenario_path(task.scenario).read_bytes()).hexdigest()
+    if now != rec["sha256"]:
+        raise RuntimeError(f"task {task.task_id}: the scenario file {rec['file']} changed since the campaign was "
+                           f"defined (SHA-256 {rec['sha256'][:12]} then, {now[:12]} now); its rows would not match "
+                           f"the others. Restore the file, or start a new campaign folder")
     sc = load_scenario(task.scenario, method=task.method)
     if d.get("duration_s") is not None:
         sc = dataclasses.replace(sc, duration=float(d["duration_s"]))
     result = simulate(sc, runs=task.runs, seed=task.seed, run_start=task.run_start, batch=d["batch"],
                       key=estimator_key(sc, task.seed))
     evaluation = safe_colregs_evaluation(result)
-    sha = next(s["sha256"] for s in d["scenarios"] if s["item"] == task.scenario)
-    pkg = doc["resolved"]["package"]
+    sha = rec["sha256"]
     settings = {"campaign": d["name"], "method": result.method or "none", "seed": task.seed,
                 "task_id": task.task_id, "scenario_sha256": sha, "package_version": pkg["version"],
                 "commit": pkg["commit"]}
@@ -59,9 +75,14 @@ def run_task(folder, task: Task, doc: dict) -> dict:
     return {"task_id": task.task_id, "rows": len(frame), "runs": task.runs, "wall_s": wall}
 
 
+_REPORT_LOCK = threading.Lock()
+
+
 def _report(on_done, ok: bool, task_id: str, info) -> None:
+    """Call ``on_done`` (from one thread at a time: the local engine's worker threads share it)."""
     if on_done is not None:
-        on_done(ok, task_id, info)
+        with _REPORT_LOCK:
+            on_done(ok, task_id, info)
 
 
 def run_local(folder, doc: dict, pending: list[Task], *, workers: int = 1, on_done=None) -> dict[str, str]:
