@@ -20,7 +20,8 @@ SPEC = {"scenarios": ["head_on"], "methods": ["psbmpc"], "runs": 2, "chunk_runs"
 @pytest.fixture(scope="module")
 def folders(tmp_path_factory):
     base = tmp_path_factory.mktemp("m")
-    for name, changes in (("a", {"seeds": [0]}), ("b", {"seeds": [1]}), ("c", {"seeds": [0], "duration_s": 15})):
+    for name, changes in (("a", {"seeds": [0], "trajectories": True}), ("b", {"seeds": [1], "trajectories": True}),
+                          ("c", {"seeds": [0], "duration_s": 15})):
         assert not run_campaign(definition_from_dict({**SPEC, "name": name, **changes}), base / name)["failed"]
     return base
 
@@ -34,6 +35,9 @@ def test_merge_combines_rows(folders, tmp_path, capsys):
     assert sorted(set(got.seed)) == [0, 1] and set(got.campaign) == {"a", "b"}
     doc = json.loads((tmp_path / "ab" / CAMPAIGN_FILE).read_text())
     assert doc["kind"] == "merge" and doc["rows"] == 8 and len(doc["sources"]) == 2
+    traj = pd.read_parquet(tmp_path / "ab" / "trajectories.parquet")         # both inputs have trajectories
+    assert len(traj) == sum(len(pd.read_parquet(folders / n / "trajectories.parquet")) for n in "ab")
+    assert doc["trajectories_parquet"]["rows"] == len(traj)
     # a merge is itself an input of a merge, but not a folder to write into without --force
     assert main(["merge", str(folders / "a"), str(folders / "b"), "--out", str(tmp_path / "ab")]) == 2
     assert "earlier merge; pass --force" in capsys.readouterr().err

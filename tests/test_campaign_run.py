@@ -61,3 +61,19 @@ def test_rows_do_not_depend_on_the_cut_into_tasks(reference, tmp_path):
 def test_second_call_skips_finished_tasks(reference):
     res = run_campaign(definition_from_dict(SPEC), reference)
     assert res["skipped"] == N_TASKS and res["ran"] == 0 and not res["failed"]
+
+
+def test_trajectories_are_stored_on_request(tmp_path):
+    spec = {**SPEC, "scenarios": ["crossing_give_way"], "methods": ["sbmpc"], "trajectories": True}
+    res = run_campaign(definition_from_dict(spec), tmp_path / "t")
+    assert not res["failed"]
+    tr = pd.read_parquet(tmp_path / "t" / "trajectories.parquet")
+    sim = simulate(dataclasses.replace(load_scenario("crossing_give_way", method="sbmpc"), duration=10.0),
+                   runs=3, seed=0)
+    n_steps = sim.states.shape[2]
+    assert len(tr) == 3 * 2 * n_steps
+    assert not tr.duplicated(["run", "ship", "t_s"]).any()
+    one = tr[(tr.run == 2) & (tr.ship == "TS1")].sort_values("t_s")
+    assert one.north_m.tolist() == sim.states[2, 1, :, 0].tolist()
+    assert one.speed_mps.tolist() == sim.states[2, 1, :, 3].tolist()
+    assert read_campaign(tmp_path / "t")["trajectories_parquet"]["rows"] == len(tr)

@@ -61,6 +61,8 @@ def add_campaign_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--duration", type=_positive_float, default=None, metavar="SECONDS",
                    help="cut every scenario to this duration [s]")
     p.add_argument("--batch", choices=("auto", "vmap", "loop"), default=None, help="as psbmpc-jax run --batch")
+    p.add_argument("--trajectories", action="store_true", default=None,
+                   help="also store every run's trajectories (trajectories.parquet)")
     p.add_argument("--engine", choices=("local", "ray"), default="local",
                    help="local (default, no extra dependency) or ray (pip install \"psbmpc-jax[cluster]\")")
     p.add_argument("--workers", type=positive_int, default=1,
@@ -88,7 +90,7 @@ def run_campaign_cli(args, parser) -> int:
 
     overrides = {"name": args.name, "scenarios": args.scenarios, "methods": args.methods, "seeds": args.seeds,
                  "runs": args.runs, "chunk_runs": args.chunk_runs, "duration_s": args.duration,
-                 "batch": args.batch}
+                 "batch": args.batch, "trajectories": args.trajectories}
     try:
         if args.file:
             defn = d.load_definition(args.file, overrides)

@@ -11,6 +11,7 @@ A campaign file (YAML, every key below; unknown keys are errors)::
     chunk_runs: 50                  # at most this many runs per task (default 50)
     duration_s: 60                  # optional: cut every scenario to this duration
     batch: auto                     # auto | vmap | loop (as psbmpc-jax run --batch)
+    trajectories: false             # true: every run's trajectories too (trajectories.parquet)
 
 Run ``r`` of a seed is the same simulation whatever task it falls in (``simulate(..., run_start=...)``), so the
 rows of a campaign do not depend on ``chunk_runs``.
@@ -35,7 +36,7 @@ __all__ = ["CampaignDefinition", "Task", "DEFAULT_CHUNK_RUNS", "MAX_CAMPAIGN_RUN
 DEFAULT_CHUNK_RUNS = 50
 #: Most runs per scenario x method x seed (a campaign streams them to disk task by task).
 MAX_CAMPAIGN_RUNS = 1_000_000
-KEYS = ("name", "scenarios", "methods", "seeds", "runs", "chunk_runs", "duration_s", "batch")
+KEYS = ("name", "scenarios", "methods", "seeds", "runs", "chunk_runs", "duration_s", "batch", "trajectories")
 BATCH_MODES = ("auto", "vmap", "loop")
 
 
@@ -52,6 +53,7 @@ class CampaignDefinition:
     chunk_runs: int = DEFAULT_CHUNK_RUNS
     duration_s: float | None = None
     batch: str = "auto"
+    trajectories: bool = False
 
 
 @dataclasses.dataclass(frozen=True)
@@ -143,8 +145,11 @@ def definition_from_dict(data: dict, *, base_dir=None, source=None, default_name
     if batch not in BATCH_MODES:
         raise ValueError(f"{_where(source)}campaign field 'batch' must be one of {', '.join(BATCH_MODES)}, got "
                          f"{batch!r}")
+    traj = data.get("trajectories", False)
+    if not isinstance(traj, bool):
+        raise ValueError(f"{_where(source)}campaign field 'trajectories' must be true or false, got {traj!r}")
     return CampaignDefinition(name=name, scenarios=tuple(scenarios), methods=methods, seeds=seeds, runs=runs,
-                              chunk_runs=chunk, duration_s=duration, batch=batch)
+                              chunk_runs=chunk, duration_s=duration, batch=batch, trajectories=traj)
 
 
 def load_definition(path, overrides: dict | None = None) -> CampaignDefinition:

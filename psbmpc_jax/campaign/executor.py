@@ -39,7 +39,7 @@ def run_task(folder, task: Task, doc: dict) -> dict:
     from ..scenario.load import estimator_key
     from ..sim import simulate
     from ..sim.output import safe_colregs_evaluation
-    from .rows import rows_frame, simulation_rows
+    from .rows import rows_frame, simulation_rows, trajectory_frame
 
     from .. import __version__
     from ..provenance import commit
@@ -70,8 +70,10 @@ def run_task(folder, task: Task, doc: dict) -> dict:
                 "task_id": task.task_id, "scenario_sha256": sha, "package_version": pkg["version"],
                 "commit": pkg["commit"]}
     frame = rows_frame(simulation_rows(result, evaluation, settings))
+    traj = trajectory_frame(result, settings["method"], task.seed) if d.get("trajectories") else None
     wall = time.perf_counter() - t0
-    write_task(folder, task.task_id, doc["definition_sha256"], frame, {"runs": task.runs, "wall_s": wall})
+    write_task(folder, task.task_id, doc["definition_sha256"], frame, {"runs": task.runs, "wall_s": wall},
+               trajectories=traj)
     return {"task_id": task.task_id, "rows": len(frame), "runs": task.runs, "wall_s": wall}
 
 

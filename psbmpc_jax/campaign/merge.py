@@ -5,7 +5,8 @@ found in two inputs is refused, naming the key and the folders, and saying wheth
 duplicate: the same campaign merged twice, or overlapping campaigns) or differ (a conflict: e.g. the same seed
 simulated with another scenario file or code version).  Rows of the same scenario name from different scenario
 files (``scenario_sha256``) are a conflict too.  The output folder gets ``runs.parquet`` and ``campaign.json``
-(``kind: merge``, the sources with their definition hashes).
+(``kind: merge``, the sources with their definition hashes), and ``trajectories.parquet`` when every input has
+its trajectories.
 """
 
 from __future__ import annotations
@@ -18,7 +19,8 @@ import pathlib
 from ..runfolder import sha256_file
 from ..safe_io import OutputError, atomic_write_text, same_file
 from .rows import KEY_COLUMNS
-from .store import CAMPAIGN_FILE, RUNS_FILE, SCHEMA, CampaignError, concat_files, read_campaign, verified_table
+from .store import (CAMPAIGN_FILE, RUNS_FILE, SCHEMA, TRAJECTORIES_FILE, CampaignError, concat_files, read_campaign,
+                    verified_table)
 
 __all__ = ["merge_folders"]
 
@@ -36,6 +38,18 @@ def _row(path, key: tuple) -> dict:
 
     t = pq.read_table(path, filters=[(c, "==", v) for c, v in zip(KEY_COLUMNS, key)]).to_pandas()
     return t.drop(columns=[c for c in ("campaign", "task_id") if c in t.columns]).iloc[0].to_dict()
+
+
+def _verified_trajectories(folder: pathlib.Path, doc: dict):
+    """The folder's ``trajectories.parquet`` checked against ``campaign.json`` (None when it has none)."""
+    rec = doc.get("trajectories_parquet")
+    if rec is None:
+        return None
+    p = folder / TRAJECTORIES_FILE
+    if not p.is_file() or p.stat().st_size != rec.get("size") or sha256_file(p) != rec.get("sha256"):
+        raise CampaignError(f"{p}: missing, or its size or SHA-256 differs from the one recorded in "
+                            f"{folder / CAMPAIGN_FILE}")
+    return p
 
 
 def _same(a: dict, b: dict) -> bool:
@@ -88,10 +102,11 @@ def merge_folders(inputs, out, *, force: bool = False) -> dict:
     problem = _output_problem(out, inputs, force)
     if problem:
         raise OutputError(problem)
-    tables, sources = [], []
+    tables, sources, trajs = [], [], []
     for f in inputs:
         path, doc = verified_table(f)
         tables.append(path)
+        trajs.append(_verified_trajectories(f, doc))
         sources.append({"folder": str(f.resolve()), "kind": doc.get("kind"), "name": (
             doc.get("resolved", {}).get("definition", {}).get("name") or doc.get("name")),
             "definition_sha256": doc.get("definition_sha256"), "rows": doc.get("rows"),
@@ -125,8 +140,15 @@ def merge_folders(inputs, out, *, force: bool = False) -> dict:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise OutputError(f"cannot create {out}: {exc.strerror or exc}") from None
+    extra = {}
+    if all(t is not None for t in trajs):       # every input has its trajectories: they are merged too
+        n = concat_files(trajs, out / TRAJECTORIES_FILE)
+        extra["trajectories_parquet"] = {"rows": n, "size": (out / TRAJECTORIES_FILE).stat().st_size,
+                                         "sha256": sha256_file(out / TRAJECTORIES_FILE)}
+    elif (out / TRAJECTORIES_FILE).is_file():    # the earlier merge's (replaced with --force): not left beside
+        (out / TRAJECTORIES_FILE).unlink()
     rows = concat_files(tables, out / RUNS_FILE)
-    doc = {"schema": SCHEMA, "kind": "merge", "complete": True,
+    doc = {"schema": SCHEMA, "kind": "merge", "complete": True, **extra,
            "created_utc": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
            "sources": sources, "rows": rows,
            "runs_parquet": {"size": (out / RUNS_FILE).stat().st_size, "sha256": sha256_file(out / RUNS_FILE)}}

@@ -23,7 +23,7 @@ import math
 
 import numpy as np
 
-__all__ = ["KEY_COLUMNS", "EXECUTION_COLUMNS", "simulation_rows", "rows_frame", "comparable"]
+__all__ = ["KEY_COLUMNS", "EXECUTION_COLUMNS", "simulation_rows", "rows_frame", "comparable", "trajectory_frame"]
 
 #: The columns that identify a row: one row per scenario x method x seed x run x ship.
 KEY_COLUMNS = ("scenario", "method", "seed", "run", "ship")
@@ -188,3 +188,23 @@ def comparable(frame):
     executions of one campaign (other engines, other ``chunk_runs``, a resume) give equal frames."""
     df = frame.drop(columns=[c for c in EXECUTION_COLUMNS if c in frame.columns])
     return df[sorted(df.columns)].sort_values(list(KEY_COLUMNS)).reset_index(drop=True)
+
+
+def trajectory_frame(result, method: str, seed: int):
+    """Every run's true trajectories as a long table: one row per run x ship x time step, columns ``scenario``,
+    ``method``, ``seed``, ``run``, ``ship``, ``t_s``, ``north_m``, ``east_m``, ``course_deg``, ``speed_mps``."""
+    import pandas as pd
+
+    st = np.asarray(result.states)                       # [R, n, K+1, 4]
+    R, n, K1, _ = st.shape
+    names = np.array([s.name for s in result.scenario.ships], dtype=object)
+    runs = result.run_start + np.arange(R)
+    return pd.DataFrame({
+        "scenario": pd.array(np.full(R * n * K1, result.scenario.name, dtype=object), dtype="string"),
+        "method": pd.array(np.full(R * n * K1, method, dtype=object), dtype="string"),
+        "seed": np.full(R * n * K1, seed, dtype="int64"),
+        "run": np.repeat(runs, n * K1).astype("int64"),
+        "ship": pd.array(np.tile(np.repeat(names, K1), R), dtype="string"),
+        "t_s": np.tile(np.asarray(result.t, float), R * n),
+        "north_m": st[..., 0].ravel(), "east_m": st[..., 1].ravel(),
+        "course_deg": np.degrees(st[..., 2]).ravel(), "speed_mps": st[..., 3].ravel()})

@@ -6,8 +6,10 @@ Layout::
     DIR/campaign.json             schema psbmpc-campaign/1: the resolved definition, its SHA-256, the tasks,
                                   and (once every task is done) the table's rows and SHA-256
     DIR/tasks/<task id>.parquet   the task's rows (written atomically)
-    DIR/tasks/<task id>.done.json written after the rows: rows, SHA-256 of the Parquet file, definition hash
+    DIR/tasks/<task id>.traj.parquet  with ``trajectories: true``: the task's trajectories
+    DIR/tasks/<task id>.done.json written after them: rows, SHA-256 of the Parquet file(s), definition hash
     DIR/runs.parquet              every task's rows, in task order (written atomically when all are done)
+    DIR/trajectories.parquet      with ``trajectories: true``: every task's trajectories, likewise
 
 A task counts as done only when its marker names this campaign's definition hash and its Parquet file has the
 recorded size and SHA-256; anything else is run again (its files are replaced atomically).  A folder that holds
@@ -36,6 +38,7 @@ log = logging.getLogger(__name__)
 SCHEMA = "psbmpc-campaign/1"
 CAMPAIGN_FILE = "campaign.json"
 RUNS_FILE = "runs.parquet"
+TRAJECTORIES_FILE = "trajectories.parquet"
 TASKS_DIR = "tasks"
 _TASK_FILE_RE = re.compile(r"^[A-Za-z0-9_.-]+\.(parquet|done\.json)$")
 
@@ -65,7 +68,7 @@ def read_campaign(folder) -> dict | None:
 
 
 def _our_files(folder: pathlib.Path) -> list[pathlib.Path]:
-    out = [folder / n for n in (CAMPAIGN_FILE, RUNS_FILE) if (folder / n).is_file()]
+    out = [folder / n for n in (CAMPAIGN_FILE, RUNS_FILE, TRAJECTORIES_FILE) if (folder / n).is_file()]
     tdir = folder / TASKS_DIR
     if tdir.is_dir():
         out += [p for p in tdir.iterdir() if p.is_file() and (_TASK_FILE_RE.match(p.name)
@@ -125,6 +128,15 @@ def _table(folder: pathlib.Path, task_id: str) -> pathlib.Path:
     return folder / TASKS_DIR / f"{task_id}.parquet"
 
 
+def _traj(folder: pathlib.Path, task_id: str) -> pathlib.Path:
+    return folder / TASKS_DIR / f"{task_id}.traj.parquet"
+
+
+def _intact(path: pathlib.Path, rec) -> bool:
+    return isinstance(rec, dict) and path.is_file() and path.stat().st_size == rec.get("size") \
+        and sha256_file(path) == rec.get("sha256")
+
+
 def task_done(folder, task_id: str, digest: str) -> bool:
     """Whether the task's rows are on disk for the campaign ``digest`` (marker and table agree)."""
     folder = pathlib.Path(folder)
@@ -138,20 +150,30 @@ def task_done(folder, task_id: str, digest: str) -> bool:
         return False
     if doc.get("definition_sha256") != digest:
         return False
-    if t.stat().st_size != doc.get("size") or sha256_file(t) != doc.get("sha256"):
+    if not _intact(t, doc):
         log.warning("%s: differs from its done marker (size or SHA-256); the task runs again", t)
+        return False
+    if "trajectories" in doc and not _intact(_traj(folder, task_id), doc["trajectories"]):
+        log.warning("%s: missing or differs from its done marker; the task runs again", _traj(folder, task_id))
         return False
     return True
 
 
-def write_task(folder, task_id: str, digest: str, frame, info: dict) -> pathlib.Path:
-    """Write a task's rows (``frame``, a DataFrame) atomically, then its done marker (``info`` added)."""
+def write_task(folder, task_id: str, digest: str, frame, info: dict, trajectories=None) -> pathlib.Path:
+    """Write a task's rows (``frame``, a DataFrame) and ``trajectories`` (a DataFrame, or None) atomically, then
+    its done marker (``info`` added)."""
     folder = pathlib.Path(folder)
+    extra = {}
+    if trajectories is not None:
+        p = _traj(folder, task_id)
+        with atomic_open(p, "wb") as fh:
+            trajectories.to_parquet(fh, index=False)
+        extra["trajectories"] = {"rows": int(len(trajectories)), "size": p.stat().st_size, "sha256": sha256_file(p)}
     t = _table(folder, task_id)
     with atomic_open(t, "wb") as fh:
         frame.to_parquet(fh, index=False)
     doc = {"task_id": task_id, "definition_sha256": digest, "rows": int(len(frame)), "size": t.stat().st_size,
-           "sha256": sha256_file(t), "completed_utc": _now(), **info}
+           "sha256": sha256_file(t), "completed_utc": _now(), **extra, **info}
     atomic_write_text(_marker(folder, task_id), json.dumps(doc, indent=1) + "\n")
     return t
 
@@ -206,8 +228,13 @@ def assemble(folder, doc: dict) -> pathlib.Path:
                             f"{' ...' if len(missing) > 3 else ''}); run the campaign again to finish them")
     out = folder / RUNS_FILE
     rows = concat_files([_table(folder, tid) for tid in doc["tasks"]], out)
+    extra = {}
+    if doc["resolved"]["definition"].get("trajectories"):
+        tp = folder / TRAJECTORIES_FILE
+        n = concat_files([_traj(folder, tid) for tid in doc["tasks"]], tp)
+        extra["trajectories_parquet"] = {"rows": n, "size": tp.stat().st_size, "sha256": sha256_file(tp)}
     doc = {**doc, "complete": True, "completed_utc": _now(), "rows": rows,
-           "runs_parquet": {"size": out.stat().st_size, "sha256": sha256_file(out)}}
+           "runs_parquet": {"size": out.stat().st_size, "sha256": sha256_file(out)}, **extra}
     atomic_write_text(folder / CAMPAIGN_FILE, json.dumps(doc, indent=1) + "\n")
     return out
 
