@@ -35,14 +35,13 @@ ENGINES = ("local", "ray")
 def run_task(folder, task: Task, doc: dict) -> dict:
     """Simulate one task and write its rows (``tasks/<id>.parquet`` and the done marker); returns
     ``{"task_id", "rows", "runs", "wall_s"}``."""
+    from .. import __version__
+    from ..provenance import commit
     from ..scenario import load_scenario
     from ..scenario.load import estimator_key
     from ..sim import simulate
     from ..sim.output import safe_colregs_evaluation
     from .rows import rows_frame, simulation_rows, trajectory_frame
-
-    from .. import __version__
-    from ..provenance import commit
 
     t0 = time.perf_counter()
     d = doc["resolved"]["definition"]
@@ -65,9 +64,8 @@ def run_task(folder, task: Task, doc: dict) -> dict:
     result = simulate(sc, runs=task.runs, seed=task.seed, run_start=task.run_start, batch=d["batch"],
                       key=estimator_key(sc, task.seed))
     evaluation = safe_colregs_evaluation(result)
-    sha = rec["sha256"]
     settings = {"campaign": d["name"], "method": result.method or "none", "seed": task.seed,
-                "task_id": task.task_id, "scenario_sha256": sha, "package_version": pkg["version"],
+                "task_id": task.task_id, "scenario_sha256": rec["sha256"], "package_version": pkg["version"],
                 "commit": pkg["commit"]}
     frame = rows_frame(simulation_rows(result, evaluation, settings))
     traj = trajectory_frame(result, settings["method"], task.seed) if d.get("trajectories") else None

@@ -114,7 +114,7 @@ def simulation_rows(result, evaluation: dict, settings: dict) -> list[dict]:
         encounters = ev_runs[i_run] if ev_runs is not None else None
         for i, name in enumerate(names):
             sh = per_ship.get(name, {})
-            mine = [k for k in pairs if name in k.split("-") and len(k.split("-")) == 2]
+            mine = [f"{names[min(i, j)]}-{names[max(i, j)]}" for j in range(len(names)) if j != i]   # its pairs
             row = {**common, "run": int(m["run"]), "ship": name, "ship_index": i, "own_ship": i == 0,
                    "ship_colav": ships[i].colav,
                    "ship_stops": sh.get("stops"), "ship_longest_stop_s": sh.get("longest_stop_s"),
@@ -122,7 +122,7 @@ def simulation_rows(result, evaluation: dict, settings: dict) -> list[dict]:
                    "ship_stopped_time_s": sh.get("stopped_time_s"), "ship_arrived": sh.get("arrived"),
                    "ship_arrival_time_s": sh.get("arrival_time_s"),
                    "ship_min_distance_land_m": land.get(name), "ship_grounded": name in grounded,
-                   "ship_min_distance_any_ship_m": min((pairs[k] for k in mine), default=None),
+                   "ship_min_distance_any_ship_m": min((pairs[k] for k in mine if k in pairs), default=None),
                    "ship_pair_collision": any(k in bad_pairs for k in mine),
                    **run_cols}
             if i > 0:
