@@ -45,3 +45,11 @@ def test_run_start_changes_the_draws(scenario, whole):
 def test_bad_run_start_is_refused(scenario, bad):
     with pytest.raises((ValueError, TypeError), match="run_start"):
         simulate(scenario, runs=1, seed=5, run_start=bad)
+
+
+def test_chunk_equals_one_call_under_vmap_too(scenario):
+    """With all solves of an update in one vmapped call the batch size changes with the chunk; the runs do not."""
+    whole = simulate(scenario, runs=3, seed=5, batch="vmap")
+    part = simulate(scenario, runs=2, seed=5, run_start=1, batch="vmap")
+    np.testing.assert_array_equal(part.states, whole.states[1:])
+    np.testing.assert_array_equal(part.offsets, whole.offsets[1:])
