@@ -92,7 +92,9 @@ def check_run_size(scenario, runs: int | None = None) -> int:
         raise ValueError(f"{runs} runs x {n_steps + 1} steps x {len(scenario.ships)} ships need about "
                          f"{est / 1024 ** 3:.1f} GiB of simulator memory; at most "
                          f"{MAX_SIM_MEMORY_BYTES / 1024 ** 3:.0f} GiB allowed -- fewer runs (monte_carlo.runs), a "
-                         f"shorter simulation.duration_s or a larger simulation.dt_s")
+                         f"shorter simulation.duration_s or a larger simulation.dt_s; for many runs, a campaign "
+                         f"simulates them in tasks of fewer runs each (psbmpc-jax campaign --chunk-runs, "
+                         f"docs/campaigns.md)")
     return est
 
 

@@ -28,12 +28,13 @@ def test_help_texts_are_plain():
     parser = build_parser()
     texts = {"psbmpc-jax": parser.format_help()}
     texts.update({name: p.format_help() for name, p in _subparsers(parser).items()})
-    assert set(texts) == {"psbmpc-jax", "example", "run", "bench", "report", "evaluate", "generate"}
+    assert set(texts) == {"psbmpc-jax", "example", "run", "bench", "report", "evaluate", "generate", "campaign",
+                          "merge"}
     for name, text in texts.items():
         assert "``" not in text and ":func:" not in text and ":class:" not in text, name
     top = texts["psbmpc-jax"]
     assert "--n-ps" not in top and "--estimator" not in top           # example's options live under example
-    assert all(f"psbmpc-jax {c}" in top for c in ("example", "run", "bench", "report", "evaluate"))
+    assert all(f"psbmpc-jax {c}" in top for c in ("example", "run", "bench", "report", "evaluate", "campaign", "merge"))
     assert "--estimator" in texts["example"] and "--save-trajectories" in texts["run"]
     assert "--range-scale" in texts["evaluate"] and "t_s, vessel, north_m, east_m" in texts["evaluate"]
 

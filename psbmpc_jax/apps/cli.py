@@ -37,6 +37,8 @@ PSB-MPC ship collision avoidance in JAX.
                       scores) and figures
   psbmpc-jax evaluate COLREGS safety/compliance scores of saved or user trajectories
   psbmpc-jax generate COLREGS-typed encounters (head-on, crossing, overtaking) as scenario files
+  psbmpc-jax campaign scenarios x methods x seeds x runs in resumable tasks (local or Ray), one table
+  psbmpc-jax merge    combine campaign folders into one table
   psbmpc-jax bench    runtime benchmark sweeps (JSON Lines records)
   psbmpc-jax report   Markdown report with figures from benchmark records
 
@@ -180,6 +182,14 @@ def build_parser() -> argparse.ArgumentParser:
                                      "input, 1 if --check finds a file not classified as requested.")
     add_generate_arguments(gen)
     parser._generate_parser = gen
+    from .campaign import add_campaign_arguments, add_merge_arguments
+
+    parser._campaign_parser = sub.add_parser("campaign", help="scenarios x methods x seeds x runs as resumable tasks",
+                                             description="Run a campaign (docs/campaigns.md).")
+    add_campaign_arguments(parser._campaign_parser)
+    parser._merge_parser = sub.add_parser("merge", help="combine campaign folders into one runs.parquet",
+                                          description="Merge complete campaign folders (docs/campaigns.md).")
+    add_merge_arguments(parser._merge_parser)
     return parser
 
 
@@ -522,6 +532,11 @@ def _main(argv) -> int:
         except USER_ERRORS as exc:
             print(f"psbmpc-jax generate: error: {exc}", file=sys.stderr)
             return 2
+    if args.command in ("campaign", "merge"):
+        from . import campaign
+
+        return (campaign.run_campaign_cli(args, parser._campaign_parser) if args.command == "campaign"
+                else campaign.run_merge_cli(args, parser._merge_parser))
     if args.command == "report":
         from .report import run_report
 

@@ -16,8 +16,13 @@ Per simulation step (``scenario.dt``), for all runs at once (NumPy arrays ``[R, 
    factor (the row of a per-step sequence that is due, for the gradient methods), kinematic model with
    autopilot lags (:mod:`psbmpc_jax.sim.vessel`).
 
-Randomness: run ``r`` draws its measurement noise from ``numpy.random.default_rng([seed, r])``, so a run
-replays identically whatever the number of runs simulated with it.
+Randomness: run ``r`` draws its measurement noise from ``numpy.random.default_rng([seed, r])`` (and its
+route-exchange dropouts from ``default_rng([seed, r, 2002])``), where ``r`` is the run's index in the whole
+Monte Carlo set: ``run_start`` plus its position in the call.  So a run replays identically whatever the number
+of runs simulated with it, and runs ``[a, b)`` simulated alone (``run_start=a, runs=b - a``) equal the same runs
+of one call of ``b`` runs bit for bit -- which lets a campaign cut its runs into tasks
+(:mod:`psbmpc_jax.campaign`).
+
 """
 
 from __future__ import annotations
@@ -79,6 +84,8 @@ class SimulationResult:
         colav_info: the own-ship's per-update diagnostics of the gradient methods, :data:`INFO_NAMES` ->
             ``[R, M]`` (refined / DOCP cost, warm-start cost, constraint violation, whether the warm start was
             kept, status, iterations; nan for ``psbmpc``).
+        run_start: the Monte Carlo index of the first run (row 0 of every ``[R, ...]`` array); ``metrics[i]["run"]``
+            is ``run_start + i``.
     """
 
     scenario: Scenario
@@ -96,6 +103,7 @@ class SimulationResult:
     solve_wall: np.ndarray | None = None
     method: str | None = "psbmpc"
     colav_info: dict | None = None
+    run_start: int = 0
 
     @property
     def ship_names(self) -> list[str]:
@@ -241,7 +249,8 @@ class _ClosedLoop:
     """The state of one :func:`simulate` call, arrays ``[runs, ships, ...]``, and one method per phase of a step
     (measure, plan, move).  Ship 0 is the own-ship."""
 
-    def __init__(self, scenario: Scenario, runs: int, seed: int, mode: str, key, snapshot_run: int):
+    def __init__(self, scenario: Scenario, runs: int, seed: int, mode: str, key, snapshot_run: int,
+                 run_start: int = 0):
         self.sc, self.R, self.snapshot_run = scenario, runs, snapshot_run
         mpc, sensor, config = scenario.mpc, scenario.sensor, scenario.mpc.config
         dt = scenario.dt
@@ -284,12 +293,13 @@ class _ClosedLoop:
         self.u_c, self.chi_off = np.ones((R, n)), np.zeros((R, n))
         self.absolute = np.zeros((R, n), bool)          # ships commanded by absolute (U, chi) (two_level)
         self.cmd_U, self.cmd_chi = np.zeros((R, n)), np.zeros((R, n))
-        self.rngs = [np.random.default_rng([int(seed), r]) for r in range(R)]
+        self.run_start = int(run_start)
+        self.rngs = [np.random.default_rng([int(seed), run_start + r]) for r in range(R)]
         # route exchange (Akdağ, Fossen & Johansen 2022): the segment of the last plan each run received from each
         # ship (-1: none), the plans published but not yet due (delay), and the dropout draws (their own streams)
         self.received_seg = np.full((R, n), -1, dtype=np.int64)
         self.plan_queue: list[tuple[float, np.ndarray, np.ndarray]] = []
-        self.exchange_rngs = [np.random.default_rng([int(seed), r, 2002]) for r in range(R)]
+        self.exchange_rngs = [np.random.default_rng([int(seed), run_start + r, 2002]) for r in range(R)]
         R_filter = sensor.filter_R_scale * sensor.position_std ** 2 * np.eye(2)
         self.tracker = TrackerBank((R, self.n_tg), R_filter, sensor.sigma_a, sensor.U_max) if self.n_tg else None
         self.track_x = np.full((R, self.n_tg, K + 1, 4), np.nan)
@@ -466,7 +476,8 @@ class _ClosedLoop:
             scenario=self.sc, t=self.t, states=self.states, track_x=self.track_x, track_P=self.track_P,
             solve_t=self.t[self.solve_steps], offsets=self.offsets, best_costs=self.best_costs, calls=self.calls,
             snapshot=self.snapshot, metrics=[], solve_wall=self.solve_wall, method=self.colav.method,
-            colav_info=self.colav_info if self.colav.own is not None and self.colav.own.diagnostics else None)
+            colav_info=self.colav_info if self.colav.own is not None and self.colav.own.diagnostics else None,
+            run_start=self.run_start)
 
     def clip_exceeded(self) -> bool | None:
         """Whether a prediction can have reached beyond the land kept by ``chart.clip_m``: true when a ship came
@@ -490,7 +501,7 @@ class _ClosedLoop:
 
 
 def simulate(scenario: Scenario, *, runs: int | None = None, seed: int | None = None, batch: str = "auto",
-             progress: bool = False, snapshot_run: int = 0, key=None) -> SimulationResult:
+             progress: bool = False, snapshot_run: int = 0, key=None, run_start: int = 0) -> SimulationResult:
     """Run ``runs`` Monte Carlo closed-loop simulations of ``scenario`` (default: the scenario's).
 
     Args:
@@ -500,11 +511,15 @@ def simulate(scenario: Scenario, *, runs: int | None = None, seed: int | None = 
         progress: draw a progress bar on stderr, one tick per MPC update (``tqdm`` if installed).
         snapshot_run: the run whose first manoeuvring own-ship solve is kept in full for plotting.
         key: PRNG key for the ``mc``/``ce`` estimators' samples (required for those; unused by ``quadrature``).
+        run_start: the Monte Carlo index of the first run (>= 0, default 0): the call simulates runs
+            ``run_start .. run_start + runs - 1`` of the seed, each identical to the same run of one bigger call
+            (module docstring); ``snapshot_run`` counts from the first run of the call.
     """
     if not isinstance(scenario, Scenario):
         raise ValueError(f"scenario must be a psbmpc_jax.scenario.Scenario, got {type(scenario).__name__}")
     runs = integer(scenario.runs if runs is None else runs, "runs", ge=1)
     seed = integer(scenario.seed if seed is None else seed, "seed", ge=0)
+    run_start = integer(run_start, "run_start", ge=0)
     check_run_size(scenario, runs)                 # a --runs override is held to the memory limit too
     if not 0 <= snapshot_run < runs:
         raise ValueError(f"snapshot_run must be in [0, {runs}), got {snapshot_run}")
@@ -517,7 +532,7 @@ def simulate(scenario: Scenario, *, runs: int | None = None, seed: int | None = 
                          "(psbmpc_jax.scenario.estimator_key(scenario) gives the scenario seed's key)")
     if key is not None:
         checks.prng_key(key, "key")
-    loop = _ClosedLoop(scenario, runs, seed, mode, key, snapshot_run)
+    loop = _ClosedLoop(scenario, runs, seed, mode, key, snapshot_run, run_start)
     result = loop.run(progress)
     result.metrics = [run_metrics(result, r) for r in range(runs)]
     result.summary = summarize(result, mode=mode, grid_exceeded=loop.grid_exceeded(),
@@ -544,7 +559,7 @@ def run_metrics(result: SimulationResult, r: int) -> dict:
         target_names=[s.name for s in sc.targets], arrival_radius=sc.own_ship.R_a, evaluation=sc.evaluation,
         own_name=sc.own_ship.name, target_routes=[s.waypoints for s in sc.targets],
         target_arrival_radii=[s.R_a for s in sc.targets])
-    out["run"] = r
+    out["run"] = result.run_start + r
     out["solve_times_s"] = own_solves
     ships = sc.ships
     if sc.polygons:
