@@ -44,10 +44,10 @@ def test_bad_fields_are_refused_naming_them(changes, field):
 
 
 def test_tasks_cover_every_run_once_in_chunks():
-    resolved = d.resolve(defn(runs=7, chunk_runs=3, seeds=[0, 4], methods=["psbmpc", "sbmpc"]))
+    resolved = d.resolve(defn(runs=7, chunk_runs=3, seeds=[0, 4], methods=["psbmpc", "sbmpc_init"]))
     ts = d.tasks(resolved)
     assert len(ts) == 2 * 2 * 3
-    for m in ("psbmpc", "sbmpc"):
+    for m in ("psbmpc", "sbmpc_init"):
         for seed in (0, 4):
             mine = [t for t in ts if t.method == m and t.seed == seed]
             assert [(t.run_start, t.runs) for t in mine] == [(0, 3), (3, 3), (6, 1)]

@@ -44,7 +44,9 @@ def test_200_run_campaign_same_rows_local_ray_and_killed_workers(tmp_path):
     from test_campaign_workers import markers, worker_pids
 
     runs = int(os.environ.get("PSBMPC_CAMPAIGN_SLOW_RUNS", "200"))
-    spec = {"name": "big", "scenarios": ["head_on", "crossing_give_way", "overtaking"],
+    from conftest import sbmpc_tuned_scenarios
+
+    spec = {"name": "big", "scenarios": sbmpc_tuned_scenarios(tmp_path / "scenarios"),
             "methods": ["psbmpc", "sbmpc"], "seeds": [0], "runs": runs, "chunk_runs": max(1, runs // 4),
             "duration_s": 10}
     assert not run_campaign(definition_from_dict(spec), tmp_path / "local")["failed"]

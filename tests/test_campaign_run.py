@@ -6,6 +6,7 @@ test_campaign_ray.py."""
 from __future__ import annotations
 
 import dataclasses
+import tempfile
 
 import pandas as pd
 import pytest
@@ -15,7 +16,11 @@ from psbmpc_jax.campaign.store import RUNS_FILE, read_campaign
 from psbmpc_jax.scenario import load_scenario
 from psbmpc_jax.sim import simulate
 
-SPEC = {"name": "tiny", "scenarios": ["head_on", "crossing_give_way", "overtaking"], "methods": ["psbmpc", "sbmpc"],
+from conftest import sbmpc_tuned_scenarios
+
+# the three river scenarios with mpc.sbmpc tuned for their boats (the sbmpc defaults fit 30 m ships only)
+SCENARIOS = sbmpc_tuned_scenarios(tempfile.mkdtemp(prefix="campaign_scenarios_"))
+SPEC = {"name": "tiny", "scenarios": SCENARIOS, "methods": ["psbmpc", "sbmpc"],
         "seeds": [0], "runs": 3, "chunk_runs": 2, "duration_s": 10}
 N_TASKS = 3 * 2 * 2
 
@@ -43,7 +48,7 @@ def test_rows_are_one_per_run_and_ship_and_match_simulate(reference):
     for col in ("colregs_S_safety", "colregs_P_delay", "colregs_situation", "run_collision", "ship_stops"):
         assert col in df.columns
     # run 2 of crossing_give_way / sbmpc as one simulate() call would give it
-    sc = dataclasses.replace(load_scenario("crossing_give_way", method="sbmpc"), duration=10.0)
+    sc = dataclasses.replace(load_scenario(SCENARIOS[1], method="sbmpc"), duration=10.0)
     res = simulate(sc, runs=1, seed=0, run_start=2)
     row = df[(df.scenario == "crossing_give_way") & (df.method == "sbmpc") & (df.run == 2) & (df.ship == "TS1")]
     assert row.target_min_distance_m.item() == res.metrics[0]["targets"][0]["min_distance_m"]
@@ -64,11 +69,11 @@ def test_second_call_skips_finished_tasks(reference):
 
 
 def test_trajectories_are_stored_on_request(tmp_path):
-    spec = {**SPEC, "scenarios": ["crossing_give_way"], "methods": ["sbmpc"], "trajectories": True}
+    spec = {**SPEC, "scenarios": [SCENARIOS[1]], "methods": ["sbmpc"], "trajectories": True}
     res = run_campaign(definition_from_dict(spec), tmp_path / "t")
     assert not res["failed"]
     tr = pd.read_parquet(tmp_path / "t" / "trajectories.parquet")
-    sim = simulate(dataclasses.replace(load_scenario("crossing_give_way", method="sbmpc"), duration=10.0),
+    sim = simulate(dataclasses.replace(load_scenario(SCENARIOS[1], method="sbmpc"), duration=10.0),
                    runs=3, seed=0)
     n_steps = sim.states.shape[2]
     assert len(tr) == 3 * 2 * n_steps
