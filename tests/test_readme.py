@@ -68,6 +68,8 @@ def test_readme_commands_match_ci():
     # and the lint (ruff's rules are in pyproject.toml; ruff is in the test extra)
     lint = "python3 -m ruff check ."
     assert lint in ci and ci.index(lint) > ci.index("python3 -m pytest -q")
+    types = "python3 -m mypy"
+    assert types in ci and ci.index(types) > ci.index("python3 -m pytest -q")
 
 
 def test_readme_links_resolve():
