@@ -375,6 +375,18 @@ def test_t6_with_give_way_compensation():
     assert s.P_3 == pytest.approx(0.3) and s.P_2 == 0 and s.S17 == pytest.approx(0.30)
 
 
+def test_t6_port_turn_in_stage_3_only_counts_with_the_default_stages():
+    """The T6 port turn (70-80 s) lies in stage 3: P_pt fires with port_turn_stages "3-4" (the default) and not
+    with "4" (the score table's "stand-on behavior during Stage 4"); the rest of the scores are the same."""
+    vessels = {"O": own([(70, 0), (80, -30)]), "T": crossing_target_port()}
+    e3, e4 = only(run(vessels)), only(run(vessels, port_turn_stages="4"))
+    assert e3.scores.P_pt == pytest.approx(0.7) and e4.scores.P_pt == 0
+    assert e4.scores.P_3 == e3.scores.P_3 == pytest.approx(0.5) and e4.scores.S17 == pytest.approx(0.50, abs=0.01)
+    assert e3.stage_first_t[3] == pytest.approx(69) and (4 not in e3.stage_first_t or e3.stage_first_t[4] > 80)
+    with pytest.raises(ValueError, match=r"EvalParams.port_turn_stages must be one of \('3-4', '4'\), got '3'"):
+        run(vessels, port_turn_stages="3")
+
+
 def test_t6b_stand_on_turning_to_starboard():
     s = only(run({"O": own([(70, 0), (80, 30)]), "T": crossing_target_port()})).scores
     assert s.P_pt == 0 and s.P_3 == pytest.approx(0.5) and s.S17 == pytest.approx(0.50, abs=0.01)

@@ -298,18 +298,21 @@ def _stage(ctx: PairContext, x: int) -> tuple[dict, list[Term]]:
 
 
 def _port_turn(ctx: PairContext) -> tuple[float, Term]:
-    """P_pt: a course manoeuvre overlapping stages 3–4 of [k_s, k_c] with a net port turn of at least Δχ_md,
-    the other vessel on the port side (β < 0) at its start (Rule 17(c)); and its term."""
+    """P_pt: a course manoeuvre overlapping stages 3–4 (``port_turn_stages="4"``: stage 4) of [k_s, k_c] with a
+    net port turn of at least Δχ_md, the other vessel on the port side (β < 0) at its start (Rule 17(c)); and
+    its term."""
     w, p = ctx.w, ctx.p
-    idx = w.k_s + np.flatnonzero(ctx.stage[w.k_s:w.k_c + 1] >= 3)
+    first = 4 if p.port_turn_stages == "4" else 3
+    where = "stage 4" if first == 4 else "stages 3–4"
+    idx = w.k_s + np.flatnonzero(ctx.stage[w.k_s:w.k_c + 1] >= first)
     if idx.size == 0:
-        return 0.0, Term("P_pt", 0.0, None, "stages 3–4 not reached before the CPA: 0")
+        return 0.0, Term("P_pt", 0.0, None, f"{where} not reached before the CPA: 0")
     md = p.rad("delta_course_md")
     m = next((m for m in ctx.maneuvers if m.kind == "course" and m.overlaps(int(idx[0]), int(idx[-1]))
               and m.delta_course <= -md and ctx.g.beta[m.start] < 0), None)
     value = sc.p_port_turn(m is not None, p)
     if m is None:
-        return value, Term("P_pt", value, None, "no course manoeuvre overlapping stages 3–4 turns to port (≥ "
+        return value, Term("P_pt", value, None, f"no course manoeuvre overlapping {where} turns to port (≥ "
                            f"{p.delta_course_md_deg:g}°) with the other vessel on the port side: 0")
     b0 = _deg(ctx.g.beta[m.start])
     return value, Term("P_pt", value, m.start, f"course manoeuvre {_deg(m.delta_course):+.1f}° (to port) starting in "

@@ -20,13 +20,15 @@ import math
 from dataclasses import dataclass, fields
 
 __all__ = ["EvalParams", "PRESETS", "get_params", "preset_names", "STAND_ON_MODES", "DELAY_REFERENCES",
-           "RANGE_FIELDS", "scaled_params"]
+           "PORT_TURN_STAGES", "RANGE_FIELDS", "scaled_params"]
 
 #: Allowed values of :attr:`EvalParams.stand_on_mode` (Rule 17, stand-on vessel; ``docs/evaltool.md``, choice 13).
 STAND_ON_MODES = ("reproduce", "intended")
 #: Allowed values of :attr:`EvalParams.delay_reference` (give-way vessel, Rules 8 and 16; ``docs/evaltool.md``, choice
 #: 14).
 DELAY_REFERENCES = ("encounter_start", "stage3")
+#: Allowed values of :attr:`EvalParams.port_turn_stages` (Rule 17(c); ``docs/evaltool.md``, choice 20).
+PORT_TURN_STAGES = ("3-4", "4")
 
 
 @dataclass(frozen=True)
@@ -83,6 +85,9 @@ class EvalParams:
             ``"stage3"`` ((r_Stage3 − r_man)/(r_Stage3 − r_cpa)).
         risk_gate: skip the COLREG scores of an encounter whose constant-velocity DCPA at its start is at least
             r_pref ([REC], off by default: no source gates by risk; choice 16).
+        port_turn_stages: where P_pt looks for the stand-on vessel's port turn: ``"3-4"`` (a manoeuvre overlapping
+            stages 3-4: the evaluation tool's reference implementation, the default) or ``"4"`` (stage 4 only:
+            the tool's score table, "S_pt: score for stand-on behavior during Stage 4"; choice 20).
     """
 
     sample_interval_s: float = 1.0
@@ -141,6 +146,7 @@ class EvalParams:
     stand_on_mode: str = "reproduce"
     delay_reference: str = "encounter_start"
     risk_gate: bool = False
+    port_turn_stages: str = "3-4"
 
     def __post_init__(self):
         _validate(self)
@@ -219,6 +225,8 @@ def _validate(p: EvalParams) -> None:
         raise ValueError(f"EvalParams.stand_on_mode must be one of {STAND_ON_MODES}, got {p.stand_on_mode!r}")
     if p.delay_reference not in DELAY_REFERENCES:
         raise ValueError(f"EvalParams.delay_reference must be one of {DELAY_REFERENCES}, got {p.delay_reference!r}")
+    if p.port_turn_stages not in PORT_TURN_STAGES:
+        raise ValueError(f"EvalParams.port_turn_stages must be one of {PORT_TURN_STAGES}, got {p.port_turn_stages!r}")
 
 
 # --------------------------------------------------------------------------------------------------- presets
