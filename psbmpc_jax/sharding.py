@@ -56,7 +56,10 @@ passes between the devices.  The per-solve inputs (own-ship, obstacles) and the 
 n is not a multiple of D the batch is padded on the host up to ``ceil(n / D) * D`` with copies of solve 0 (a
 real situation, so the padding computes nothing unusual); the padded solves' outputs are cut off inside the
 jitted call, so every output has exactly the single-device shapes ``[n, ...]`` and no padded solve reaches a
-result.  Each solve is computed by the same code from the same inputs as on one device.
+result.  Each solve is computed by the same code from the same inputs as on one device, and its sums over
+obstacles, scenarios and quadrature nodes are added in a fixed order (:func:`psbmpc_jax.numerics.ordered_sum`;
+XLA:CPU picks ``jnp.sum``'s order by the whole batch's shape), so the split results equal one device's bit for
+bit (``tests/test_sharding_runs.py``).
 """
 
 from __future__ import annotations

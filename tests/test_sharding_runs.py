@@ -3,13 +3,15 @@
 
 The in-process session has one CPU device (JAX fixes the count when it starts), so the comparison with the
 single-device results runs in a subprocess with ``--xla_force_host_platform_device_count=4``: the head-on
-scenario, 5 runs (not a multiple of 4: padded to 8), on one device and on 4, compared bit for bit.
+scenario, 5 runs on one device and on 4 (padded to 8), compared bit for bit; with ``PSBMPC_SLOW_TESTS=1`` also
+8 runs on 4 (2 solves each) and on 3 (padded to 9).
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import json
 import os
 import subprocess
 import sys
@@ -110,8 +112,8 @@ def test_cli_refuses_devices_before_simulating(tmp_path, capsys):
 SCRIPT = textwrap.dedent("""
     import dataclasses, json, os, sys, tempfile
     import jax, numpy as np
-    if len(sys.argv) > 1:
-        jax.config.update("jax_compilation_cache_dir", sys.argv[1])
+    if len(sys.argv) > 2:
+        jax.config.update("jax_compilation_cache_dir", sys.argv[2])
         jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
     from psbmpc_jax import sharding
     from psbmpc_jax.apps.cli import main
@@ -129,24 +131,26 @@ SCRIPT = textwrap.dedent("""
             return [timeless(v) for v in m]
         return m
 
+    runs, splits = json.loads(sys.argv[1])           # fast: 5 runs on 4 devices (padded to 8)
     sc = dataclasses.replace(load_scenario("head_on"), duration=30.0)
-    one = simulate(sc, runs=5, seed=3, batch="vmap")                   # one device: the reference
-    four = simulate(sc, runs=5, seed=3, devices=4)                     # auto -> vmap; 5 solves padded to 8
-    assert one.summary["devices"] == 1 and four.summary["devices"] == 4, four.summary["devices"]
-    assert four.summary["batch_mode"] == "vmap"
-    for name in ("states", "track_x", "track_P", "offsets", "best_costs"):
-        a, b = getattr(one, name), getattr(four, name)
-        assert a.shape == b.shape and a.dtype == b.dtype, name
-        assert np.array_equal(a, b, equal_nan=True), (name, np.nanmax(np.abs(a - b)))
-    # the comparison means something: the own-ship manoeuvred (offsets other than (1, 0)) and the runs differ
+    one = simulate(sc, runs=runs, seed=3, batch="vmap")                # one device: the reference
+    # the own-ship manoeuvred (offsets other than (1, 0)) and the runs differ: the comparison means something
     own = one.offsets[:, 0]
     assert np.any(own[..., 1] != 0.0) and not np.array_equal(one.states[0], one.states[1])
-    for a, b in zip(one.metrics, four.metrics):
-        assert json.dumps(timeless(a), sort_keys=True) == json.dumps(timeless(b), sort_keys=True)
-    assert all(c["device_calls"] == 1 and c["solves"] == 5 for c in four.calls)
-    # the 4-device program is the one that ran (jit's cache of the split call holds a compiled program)
-    fn, shardings = sharding._batch_fn(sc.mpc.config, tuple(DEFAULT_TERMS), tuple(devs))
-    assert shardings is not None and fn._cache_size() >= 1
+    for n_dev in splits:
+        split = simulate(sc, runs=runs, seed=3, devices=n_dev)         # auto -> vmap
+        assert one.summary["devices"] == 1 and split.summary["devices"] == n_dev, split.summary["devices"]
+        assert split.summary["batch_mode"] == "vmap"
+        for name in ("states", "track_x", "track_P", "offsets", "best_costs"):
+            a, b = getattr(one, name), getattr(split, name)
+            assert a.shape == b.shape and a.dtype == b.dtype, name
+            assert np.array_equal(a, b, equal_nan=True), (n_dev, name, np.argwhere(a != b)[:5])
+        for a, b in zip(one.metrics, split.metrics):
+            assert json.dumps(timeless(a), sort_keys=True) == json.dumps(timeless(b), sort_keys=True)
+        assert all(c["device_calls"] == 1 and c["solves"] == runs for c in split.calls)
+        # the split program is the one that ran (jit's cache of the split call holds a compiled program)
+        fn, shardings = sharding._batch_fn(sc.mpc.config, tuple(DEFAULT_TERMS), tuple(devs[:n_dev]))
+        assert shardings is not None and fn._cache_size() >= 1
     assert check_devices_split(sc, "all") == tuple(devs)
     # a scenario none of whose controllers splits its batch is refused (nothing silently left on one device)
     smooth = load_scenario("head_on", method="smooth_sbmpc")
@@ -174,7 +178,9 @@ SCRIPT = textwrap.dedent("""
 """)
 
 
-def test_four_host_devices_equal_one_bit_for_bit(request):
+def run_split_check(request, runs: int, splits: tuple):
+    """The script above in a process with 4 host devices: ``runs`` runs of head-on on one device and on each of
+    ``splits`` devices."""
     env = dict(os.environ)
     # XLA's default optimisation level, as users compile (test_sharding.py does the same)
     flags = env.get("XLA_FLAGS", "").replace(O0_FLAG, "")
@@ -183,7 +189,7 @@ def test_four_host_devices_equal_one_bit_for_bit(request):
     env["JAX_ENABLE_X64"] = "1"
     env["JAX_PLATFORMS"] = "cpu"
     env["PYTHONPATH"] = os.pathsep.join(p for p in (str(ROOT), env.get("PYTHONPATH")) if p)
-    args = []
+    args = [json.dumps([runs, list(splits)])]
     cache = getattr(request.config, "cache", None)                         # None under -p no:cacheprovider
     if cache is not None and not os.environ.get("PSBMPC_TEST_NO_JAX_CACHE"):
         args.append(str(cache.mkdir("jax-compilation-cache-4dev")))
@@ -192,3 +198,15 @@ def test_four_host_devices_equal_one_bit_for_bit(request):
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-6000:]
     assert "RUNS-SHARDING-OK 4" in proc.stdout
     assert "argument --devices: devices=4: no controller of scenario 'head_on' splits" in proc.stderr
+
+
+def test_four_host_devices_equal_one_bit_for_bit(request):
+    """5 runs (not a multiple of 4: padded to 8) on 4 devices equal one device."""
+    run_split_check(request, 5, (4,))
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not os.environ.get("PSBMPC_SLOW_TESTS"), reason="slow (two more compiles): PSBMPC_SLOW_TESTS=1")
+def test_more_splits_equal_one_bit_for_bit(request):
+    """8 runs on 4 devices (2 each, no padding) and on 3 (padded to 9) equal one device."""
+    run_split_check(request, 8, (4, 3))
