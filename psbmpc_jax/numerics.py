@@ -66,3 +66,16 @@ def shift_controls(controls, steps: int):
         return c.copy()
     tail = np.repeat(c[..., -1:, :], steps, axis=-2)
     return np.concatenate([c[..., steps:, :], tail], axis=-2)
+
+
+def ordered_sum(x, first_axis: int = 1):
+    """The sum of ``x`` over its axes from ``first_axis`` on, added one element after the other in row-major order
+    (a left fold): the order is fixed by this code, not chosen by the compiler, so a solve's sum has the same
+    bits whatever the batch it is computed in (``jnp.sum`` lets XLA pick the order, and XLA:CPU picks it by the
+    whole array's shape: the same solve summed in a vmapped batch of 8 or of 4 differed in the last bit)."""
+    flat = x.reshape(x.shape[:first_axis] + (-1,))
+    total = flat[..., 0]
+    for j in range(1, flat.shape[-1]):
+        total = total + flat[..., j]
+    return total
+

@@ -1,4 +1,16 @@
-"""Multi-device solve step: the behaviour axis split over several local devices with ``jax.shard_map``.
+"""Multi-device solves with ``jax.shard_map``: one solve's behaviour axis, or a batch of solves' runs axis, split
+over several local devices.
+
+Two splits, one or the other per solve (never both: a batch split over its runs gives each device whole solves,
+each with its whole behaviour table):
+
+* :func:`solve_sharded` -- **one solve, its behaviour table split** (section "Behaviour axis").  For one large
+  solve (a planner call of your own); the simulator does not use it.
+* :func:`solve_batch` -- **a batch of solves, split along the batch** (the closed-loop simulator's Monte Carlo
+  runs: :func:`psbmpc_jax.sim.simulate` with ``devices=``; section "Runs axis").
+
+Behaviour axis
+--------------
 
 This mirrors splitting the CUDA grid of the original PSB-MPC over several GPUs: every control behaviour
 is independent of the others (kernel 1 rolls out one own-ship trajectory per behaviour, kernel 2 scores it
@@ -31,11 +43,28 @@ costs are computed by the same code from the same inputs; in float64 they agree 
 within rounding).  One difference: ``n_pc_blocks`` counts the work actually done, so when B had to be
 padded to a multiple of D the extra masked copies of behaviour 0 add their collision-probability blocks
 (exactly the single-device count when D divides B).
+
+Runs axis
+---------
+
+The simulator's vmapped call (``batch="vmap"``) solves every run and ship of one MPC update at once: a leading
+batch axis of n independent solves, runs major (whole runs stay together).  :func:`solve_batch` cuts it into D
+equal contiguous slices, one per device (a 1-D mesh with one axis named ``"runs"``), and each device runs the
+program of the single-device call (``vmap`` of :func:`psbmpc_jax.solve.solve_arrays`) on its slice; nothing
+passes between the devices.  The per-solve inputs (own-ship, obstacles) and the planner states are split
+(``PartitionSpec("runs")``); the chart, grid, behaviour table, parameters and sample table are replicated.  When
+n is not a multiple of D the batch is padded on the host up to ``ceil(n / D) * D`` with copies of solve 0 (a
+real situation, so the padding computes nothing unusual); the padded solves' outputs are cut off inside the
+jitted call, so every output has exactly the single-device shapes ``[n, ...]`` and no padded solve reaches a
+result.  Each solve is computed by the same code from the same inputs as on one device, and its sums over
+obstacles, scenarios and quadrature nodes are added in a fixed order (:func:`psbmpc_jax.numerics.ordered_sum`;
+XLA:CPU picks ``jnp.sum``'s order by the whole batch's shape), so the split results equal one device's bit for
+bit (``tests/test_sharding_runs.py``).
 """
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import lru_cache, partial
 from typing import Sequence
 
 import jax
@@ -47,11 +76,13 @@ from jax.sharding import PartitionSpec as P
 from .costs.base import check_terms
 from .evaluate import DEFAULT_TERMS, Evaluation, evaluate_arrays
 from .ownship import Trajectory
-from .packing import SolveInputs, pad_behaviours
+from .packing import SHARED_AXES, SolveInputs, pad_behaviours
 from .params import Params, PlannerConfig
-from .solve import PlannerState, select
+from .solve import PlannerState, select, solve_arrays
 
 AXIS = "b"
+#: The mesh axis of the runs split (:func:`solve_batch`).
+RUNS_AXIS = "runs"
 
 
 def check_devices(devices: Sequence | None) -> tuple:
@@ -185,4 +216,98 @@ def solve_sharded(inputs: SolveInputs, state, params: Params, samples, config: P
     return fn(*args, n_b=n_b)
 
 
-__all__ = ["solve_sharded", "sharded_call", "check_devices"]
+# ------------------------------------------------------------------------------------------ runs axis
+def local_devices(count) -> tuple:
+    """The first ``count`` of ``jax.local_devices()`` (``count`` an integer >= 1, or ``"all"``), as a tuple.
+
+    Raises:
+        ValueError: ``count`` is neither, or more devices than this process has (the message names how many
+            there are, and on the CPU how to split the host into several devices).
+    """
+    available = tuple(jax.local_devices())
+    if isinstance(count, str) and count == "all":
+        return available
+    if isinstance(count, (bool, np.bool_)) or not isinstance(count, (int, np.integer)) or count < 1:
+        raise ValueError(f"devices must be an integer >= 1 or 'all', got {count!r}"[:200])
+    if count > len(available):
+        kind = available[0].platform
+        hint = (" (on the CPU, XLA_FLAGS=--xla_force_host_platform_device_count=N set before JAX starts splits "
+                "the host into N devices)" if kind == "cpu" else "")
+        raise ValueError(f"devices={int(count)}: this process has {len(available)} local {kind} device"
+                         f"{'s' if len(available) != 1 else ''} (jax.local_devices()); allowed: 1..{len(available)} "
+                         f"or 'all'{hint}")
+    return available[:int(count)]
+
+
+@lru_cache(maxsize=16)
+def _vmapped_solve(config: PlannerConfig, terms: tuple):
+    """``vmap`` of the solve step over a batch of solves (chart, grid, behaviours and parameters broadcast): the
+    program every device runs on its slice."""
+    return jax.vmap(partial(solve_arrays, config=config, terms=terms), in_axes=(SHARED_AXES, 0, None, None))
+
+
+@lru_cache(maxsize=16)
+def _batch_fn(config: PlannerConfig, terms: tuple, devices: tuple):
+    """Jitted ``(inputs, states, params, samples, n) -> (plan, states, Evaluation)`` and the (split, replicated)
+    shardings (None for one device, where it is the plain jitted vmap)."""
+    local = _vmapped_solve(config, terms)
+    if len(devices) == 1:
+        return jax.jit(local), None
+    mesh = Mesh(np.array(devices, dtype=object), (RUNS_AXIS,))
+    split, rep = P(RUNS_AXIS), P()
+    in_specs = (SolveInputs(own=split, obstacles=split, world=rep, behaviours=rep), split, rep, rep)
+    # check_vma=False as in the behaviour split: the evaluator's scans start from replicated carries
+    mapped = jax.shard_map(local, mesh=mesh, in_specs=in_specs, out_specs=split, check_vma=False)
+
+    def run(inputs, states, params, samples, n: int):
+        return jax.tree.map(lambda a: jax.lax.slice_in_dim(a, 0, n, axis=0),
+                            mapped(inputs, states, params, samples))
+
+    return jax.jit(run, static_argnames=("n",)), (NamedSharding(mesh, split), NamedSharding(mesh, rep))
+
+
+def pad_batch(tree, multiple: int):
+    """Every leaf of ``tree`` (leading batch axis n) padded to a multiple of ``multiple`` rows with copies of row
+    0 (unchanged when n already is one)."""
+    leaves = jax.tree.leaves(tree)
+    n = leaves[0].shape[0]
+    extra = -n % multiple
+    if not extra:
+        return tree
+    return jax.tree.map(lambda a: jnp.concatenate([a, jnp.repeat(a[:1], extra, axis=0)]), tree)
+
+
+def solve_batch(inputs: SolveInputs, states: PlannerState, params: Params, samples, config: PlannerConfig,
+                terms=DEFAULT_TERMS, devices: Sequence | None = None):
+    """A batch of n independent solves (``vmap`` of :func:`psbmpc_jax.solve.solve_arrays`), its batch axis split
+    over ``devices`` (module docstring, "Runs axis").
+
+    Args:
+        inputs: stacked inputs (:func:`psbmpc_jax.packing.stack`: own-ship and obstacles ``[n, ...]``, the
+            world and the behaviour table shared).
+        states: the n planner states, leaves ``[n, ...]``.
+        params, samples, config, terms: as for :func:`psbmpc_jax.solve.solve` (shared by every solve).
+        devices: local devices of one platform (:func:`check_devices`; default: the first local device only,
+            the plain single-device call).
+
+    Returns:
+        ``(plan, next_states, evaluation)``, leaves ``[n, ...]``, as the single-device vmapped call returns them.
+    """
+    if not isinstance(inputs, SolveInputs):
+        raise ValueError(f"inputs must be a SolveInputs, got {type(inputs).__name__}")
+    if not isinstance(config, PlannerConfig):
+        raise ValueError(f"config must be a PlannerConfig, got {type(config).__name__}")
+    terms = tuple(check_terms(terms))
+    devices = check_devices(jax.local_devices()[:1] if devices is None else devices)
+    fn, shardings = _batch_fn(config, terms, devices)
+    if shardings is None:
+        return fn(inputs, states, params, samples)
+    n = jax.tree.leaves(inputs.own)[0].shape[0]
+    per_solve = pad_batch((inputs.own, inputs.obstacles, states), len(devices))
+    split, rep = shardings
+    own, obstacles, states = jax.device_put(per_solve, split)
+    world, behaviours, params, samples = jax.device_put((inputs.world, inputs.behaviours, params, samples), rep)
+    return fn(SolveInputs(own, obstacles, world, behaviours), states, params, samples, n=n)
+
+
+__all__ = ["solve_sharded", "sharded_call", "check_devices", "solve_batch", "local_devices", "pad_batch"]

@@ -56,6 +56,16 @@ def seed_int(text: str) -> int:
     return _at_most(v, MAX_SEED, "an integer seed")
 
 
+def devices_arg(text: str):
+    """Local devices to split the runs over: a positive integer or ``all``."""
+    if text.strip() == "all":
+        return "all"
+    try:
+        return positive_int(text)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer or 'all', got {text!r}"[:200]) from None
+
+
 def odd_int(text: str) -> int:
     v = positive_int(text)
     if v % 2 == 0:

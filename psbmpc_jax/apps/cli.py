@@ -14,7 +14,7 @@ import time
 
 from ..cache import enable_compilation_cache
 from ..methods import get_method, names
-from .argtypes import nonneg_int, odd_int, positive_int, runs_int, seed_int
+from .argtypes import devices_arg, nonneg_int, odd_int, positive_int, runs_int, seed_int
 
 
 
@@ -230,7 +230,10 @@ def add_run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--out", default="results", help="output folder; one sub-folder per scenario (default: results)")
     p.add_argument("--batch", choices=("auto", "vmap", "loop"), default="auto",
                    help="device calls per MPC update: one vmapped call for all runs and ships, or one per solve "
-                        "(auto: vmap on an accelerator, loop on the CPU)")
+                        "(auto: vmap on an accelerator, loop on the CPU; vmap with --devices > 1)")
+    p.add_argument("--devices", type=devices_arg, default=1, metavar="N|all",
+                   help="split the vmapped call of each MPC update (every run and ship) over N local devices, or "
+                        "all of them (default 1); same results as one device; grid-search methods only")
     p.add_argument("--plot-runs", type=_plot_runs, default=False, metavar="RUNS",
                    help="runs to draw map, distance and course/speed figures of: 'all' or indices such as 0,3,5 "
                         "(files named map_run3.png, ...); default: run 0 (map.png, ...)")
@@ -435,6 +438,13 @@ def run_scenarios(args, parser) -> int:
 
     import jax
 
+    from ..sim.simulator import check_devices_split
+
+    for sc in scenarios:    # --devices against this machine and each scenario's methods, before the first run
+        try:
+            check_devices_split(sc, args.devices, args.batch)
+        except ValueError as exc:
+            parser.error(f"argument --devices: {exc}")
     enable_compilation_cache()
     from ..sim import simulate
     from ..sim.output import write_index, write_outputs
@@ -446,7 +456,7 @@ def run_scenarios(args, parser) -> int:
         # mc / ce draw their sample table from a key: seeded like the measurement noise
         key = jax.random.key(seed) if scenario.mpc.config.estimator != "quadrature" else None
         result = simulate(scenario, runs=args.runs, seed=args.seed, batch=args.batch, progress=not args.quiet,
-                          key=key)
+                          key=key, devices=args.devices)
         out = pathlib.Path(args.out) / output_folder(scenario.name, args.method)
         try:
             write_outputs(result, out, figures=not args.no_figures, plot_runs=plot_runs[scenario.name],

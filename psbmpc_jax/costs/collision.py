@@ -17,7 +17,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..layouts import resolve_pc_layout
-from ..numerics import normal_cdf, safe_sqrt
+from ..numerics import normal_cdf, ordered_sum, safe_sqrt
 from .base import Context, TermValue, cost_term
 
 LOG_2PI = math.log(2.0 * math.pi)
@@ -83,7 +83,7 @@ def pc_quadrature(dx, dy, sxx, sxy, syy, R, n_quad: int = 32, span: float = 6.0)
         # float32: XLA's polynomial erf (no exp) is ~3x cheaper than ndtr; absolute error ~1e-7
         inv = 1.0 / (math.sqrt(2.0) * s_e)
         inner = 0.5 * (jax.lax.erf((h - m) * inv) + jax.lax.erf((h + m) * inv))
-    p = half * jnp.sum(w * dens * inner * (2.0 * h * q), axis=-1)
+    p = half * ordered_sum(w * dens * inner * (2.0 * h * q), first_axis=-1)
     return jnp.where(nonempty, jnp.clip(p, 0.0, 1.0), 0.0)
 
 
@@ -402,5 +402,5 @@ class CollisionTerm:
         n_o, n_s = ctx.scen_weight.shape
         c_flat, cf_flat, n_blocks = collision_kernel(ctx, params, config, samples)
         c = c_flat.reshape(-1, n_o, n_s)
-        return TermValue(jnp.sum(ctx.scen_weight[None] * c, axis=(1, 2)),
+        return TermValue(ordered_sum(ctx.scen_weight[None] * c),
                          {"C": c, "C_future": cf_flat.reshape(-1, n_o, n_s)}, {"n_pc_blocks": n_blocks})

@@ -12,6 +12,7 @@ import math
 
 import jax.numpy as jnp
 
+from ..numerics import ordered_sum
 from ..params import STOP_REMEDIES as _STOP_REMEDIES
 from .base import Context, TermValue, cost_term
 from .collision import pair_geometry
@@ -103,7 +104,7 @@ class ColregsTerm:
                          own.cos_chi[:, None], own.sin_chi[:, None], params.d_close,
                          heading=stop_remedy(config) == "colregs_heading") & valid_os[None, :, None]
         mu = jnp.any(viol, axis=0).astype(own.x.dtype).T.reshape(-1, n_o, n_s)        # [B, O, S]
-        return TermValue(params.kappa * jnp.sum(ctx.scen_weight[None] * mu, axis=(1, 2)), {"mu": mu})
+        return TermValue(params.kappa * ordered_sum(ctx.scen_weight[None] * mu), {"mu": mu})
 
 
 def stop_remedy(config) -> str:

@@ -251,12 +251,15 @@ class ShipController:
 class BuildContext:
     """What the simulator hands :meth:`Method.build` besides the scenario: the batch mode (``"vmap"``: one
     device call per update; ``"loop"``: one per solve), the PSB-MPC parameters as arrays, the estimator's sample
-    table and the PRNG key (None for the ``quadrature`` estimator)."""
+    table, the PRNG key (None for the ``quadrature`` estimator) and the local devices to split the vmapped batch
+    over (None: the default device; :func:`psbmpc_jax.sharding.solve_batch`).  A controller that splits its batch
+    over them says so with a class attribute ``splits_runs = True``."""
 
     mode: str = "loop"
     params: Any = None
     samples: Any = None
     key: Any = None
+    devices: Any = None
 
 
 @dataclass(frozen=True)

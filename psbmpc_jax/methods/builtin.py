@@ -62,7 +62,8 @@ class Psbmpc(Method):
     def build(self, scenario, ships, context: BuildContext):
         from .grid import GridController
 
-        return GridController(ships, context.mode, scenario.mpc, context.params, context.samples, method=self.name)
+        return GridController(ships, context.mode, scenario.mpc, context.params, context.samples, method=self.name,
+                              devices=context.devices)
 
     def record(self, scenario) -> dict:
         m = scenario.mpc      # its weights and solver configuration are mpc.params / mpc.config (recorded apart)
@@ -118,7 +119,7 @@ class Sbmpc(Method):
         from .grid import GridController
 
         return GridController(ships, context.mode, scenario.mpc, context.params, context.samples, method=self.name,
-                              n_ps=1, terms=self.terms(scenario))
+                              n_ps=1, terms=self.terms(scenario), devices=context.devices)
 
     def record(self, scenario) -> dict:
         return {"sbmpc": asdict(scenario.mpc.sbmpc), "grounding_term": _sbmpc_family_grounding(scenario)}
@@ -153,7 +154,8 @@ class InformedSbmpc(Method):
 
         inf = scenario.mpc.informed
         return GridController(ships, context.mode, scenario.mpc, context.params, context.samples,
-                              terms=informed_terms(inf), n_ps=1, method=self.name, informed=True, d_init=inf.d_init)
+                              terms=informed_terms(inf), n_ps=1, method=self.name, informed=True, d_init=inf.d_init,
+                              devices=context.devices)
 
     def record(self, scenario) -> dict:
         from .sbmpc_family import informed_terms

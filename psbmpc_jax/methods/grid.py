@@ -20,8 +20,9 @@ import numpy as np
 
 from ..evaluate import DEFAULT_TERMS
 from ..numerics import shift_controls
-from ..packing import SHARED_AXES, pack, stack, unpack
-from ..solve import Plan, PlannerState, solve, solve_arrays
+from ..packing import pack, stack, unpack
+from ..sharding import solve_batch
+from ..solve import Plan, PlannerState, solve
 from .base import COST_NAMES, INFO_NAMES, Decision, Observation
 
 
@@ -34,13 +35,6 @@ def consistent_sequences(first: np.ndarray, controls: np.ndarray, atol: float = 
     seq[~same] = first[~same, None, :]
     seq[:, 0] = first
     return seq
-
-
-@functools.lru_cache(maxsize=16)
-def _batched_solve(config, terms):
-    """vmap of the solve step over the solves of one MPC update (chart, grid and behaviours broadcast)."""
-    return jax.jit(jax.vmap(functools.partial(solve_arrays, config=config, terms=terms),
-                            in_axes=(SHARED_AXES, 0, None, None)))
 
 
 def _costs_row(plan: Plan):
@@ -74,14 +68,19 @@ def plan_now(kept, t: float, step: float) -> np.ndarray:
 
 
 class _Solver:
-    """Device side of one PSB-MPC update: solve packed situations (one vmapped call or one call each) and return
-    the chosen behaviour indices, their cost columns and, on request, one situation's full evaluation; the jobs
-    flagged ``refine`` are refined after their solve (:func:`psbmpc_jax.refine.refine`)."""
+    """Device side of one PSB-MPC update: solve packed situations (one vmapped call, its batch split over
+    ``devices`` when there are several, or one call each) and return the chosen behaviour indices, their cost
+    columns and, on request, one situation's full evaluation; the jobs flagged ``refine`` are refined after their
+    solve (:func:`psbmpc_jax.refine.refine`)."""
 
-    def __init__(self, mode: str, config, params, samples, refine=None, terms=DEFAULT_TERMS):
+    def __init__(self, mode: str, config, params, samples, refine=None, terms=DEFAULT_TERMS, devices=None):
         self.mode, self.config, self.params, self.samples = mode, config, params, samples
         self.refine = refine            # (refine function, settings) or None
         self.terms = tuple(terms)
+        self.devices = None if devices is None else tuple(devices)    # None: the default device, unsplit
+        if self.devices is not None and len(self.devices) > 1 and mode != "vmap":
+            raise ValueError(f"{len(self.devices)} devices split the vmapped batch of an update; batch mode "
+                             f"{mode!r} makes one call per solve (use batch 'vmap' or 'auto')")
 
     def _refine_one(self, inputs, plan, state, evaluation):
         """Refine one solve: ``state`` is the planner state passed TO that solve, ``evaluation`` its third output
@@ -98,12 +97,12 @@ class _Solver:
         refined = {}
         if self.mode == "vmap":
             batch_state = jax.tree.map(lambda *a: jnp.stack([jnp.asarray(x) for x in a]), *states)
-            plan, _, ev = _batched_solve(self.config, self.terms)(stack(packed), batch_state, self.params,
-                                                                  self.samples)
+            plan, _, ev = solve_batch(stack(packed), batch_state, self.params, self.samples, self.config,
+                                      self.terms, self.devices)
             best, costs = jax.device_get(plan.best), _costs_row(plan)
-            kept = jax.tree.map(lambda a: a[keep], ev) if keep is not None else None
+            kept = jax.tree.map(functools.partial(self._row, keep), ev) if keep is not None else None
             for n in sorted(refine_jobs):
-                one = functools.partial(lambda n_, a: a[n_], n)
+                one = functools.partial(self._row, n)
                 refined[n] = self._refine_one(packed[n], jax.tree.map(one, plan), states[n], jax.tree.map(one, ev))
             return np.asarray(best), np.asarray(costs), kept, None, refined
         outs, kept, walls = [], None, []
@@ -119,6 +118,12 @@ class _Solver:
         return (np.array([b for b, _ in outs]), np.stack([c for _, c in outs]), kept,
                 np.asarray(walls, dtype=float), refined)
 
+    def _row(self, n: int, a):
+        """Solve ``n``'s row of a batched output, on one device (rows of a batch split over several devices
+        live on theirs; the refinement then runs where a single-device solve would)."""
+        row = a[n]
+        return jax.device_put(row, self.devices[0]) if self.devices is not None and len(self.devices) > 1 else row
+
     def device_calls(self, n_solves: int, n_refined: int = 0) -> int:
         return (1 if self.mode == "vmap" else n_solves) + n_refined
 
@@ -132,16 +137,17 @@ class GridController:
     it."""
 
     uses_grid = True                 # packs the chart's distance grid in grounding_mode "grid"
+    splits_runs = True               # its vmapped batch is split over BuildContext.devices
 
     def __init__(self, ships, mode: str, mpc, params, samples, refine_ships=(), terms=DEFAULT_TERMS,
                  n_ps: int | None = None, method: str = "psbmpc", informed: bool = False,
-                 d_init: float | None = None):
+                 d_init: float | None = None, devices=None):
         self.ships, self.mpc, self.method = tuple(int(i) for i in ships), mpc, method
         self.refine_ships = tuple(int(i) for i in refine_ships)
         self.n_ps = n_ps
         self.informed, self.d_init = informed, d_init
         self.terms = tuple(terms)
-        self.solver = _Solver(mode, mpc.config, params, samples, None, self.terms)
+        self.solver = _Solver(mode, mpc.config, params, samples, None, self.terms, devices)
         self.previous_start = False
         self._previous: dict = {}                  # (run, ship) -> (t [s], refined controls [N, 2])
         if self.refine_ships:

@@ -199,6 +199,11 @@ class Controllers:
         return any(getattr(c, "snapshots", False) for c in self.controllers)
 
     @property
+    def splits_runs(self) -> bool:
+        """Whether a controller splits its vmapped batch over :attr:`BuildContext.devices` (``splits_runs``)."""
+        return any(getattr(c, "splits_runs", False) for c in self.controllers)
+
+    @property
     def uses_grid(self) -> bool:
         """Whether a controller packs the chart's distance grid (``grounding_mode: grid``)."""
         return any(getattr(c, "uses_grid", False) for c in self.controllers)

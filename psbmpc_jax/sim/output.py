@@ -183,7 +183,8 @@ def summary_markdown(result, evaluation: dict | None = None) -> str:
              f"{s['any_ship_groundings']}",
              _own_stops_line(s),
              f"- device: {s['device']} ({s['platform']}), batch mode `{s['batch_mode']}`, "
-             f"{s.get('mpc_solves_total', s.get('solves'))} solves in "
+             + (f"runs split over {s['devices']} devices, " if s.get("devices", 1) > 1 else "")
+             + f"{s.get('mpc_solves_total', s.get('solves'))} solves in "
              f"{s['device_calls']} device calls ({s['mpc_updates']} MPC updates), median amortised solve time "
              f"{_fmt(None if s['solve_wall_s_amortised_median'] is None else 1e3 * s['solve_wall_s_amortised_median'])} ms",
              ""]

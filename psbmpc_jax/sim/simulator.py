@@ -11,7 +11,8 @@ Per simulation step (``scenario.dt``), for all runs at once (NumPy arrays ``[R, 
    shared routes) and applies the :class:`~psbmpc_jax.methods.base.Decision` it returns -- nothing else passes
    between them, and the simulator knows no method by name.  The built-in grid-search controllers send all
    solves of one update to the device together, as one ``vmap``-ed call (``batch="vmap"``) or one call each
-   (``batch="loop"``);
+   (``batch="loop"``); with ``devices`` > 1 the vmapped call's batch (runs x ships) is split over that many
+   local devices (:func:`psbmpc_jax.sharding.solve_batch`), with the same results;
 3. the true vessels move one step: LOS guidance on their routes with the controller's course offset and speed
    factor (the row of a per-step sequence that is due, for the gradient methods), kinematic model with
    autopilot lags (:mod:`psbmpc_jax.sim.vessel`).
@@ -45,6 +46,7 @@ from ..methods.base import COST_NAMES, INFO_NAMES, BuildContext, Observation
 from ..methods.registry import build_controllers
 from ..planner import check_dtype
 from ..scenario_checks import check_run_size
+from ..sharding import local_devices
 from ..scenario import Scenario, route_geometry
 from . import metrics as metrics_mod
 from .tracker import TrackerBank
@@ -111,17 +113,45 @@ class SimulationResult:
         return [s.name for s in self.scenario.ships]
 
 
-def resolve_batch_mode(batch: str) -> str:
+def resolve_batch_mode(batch: str, n_devices: int = 1) -> str:
     """``auto`` -> ``vmap`` on an accelerator, ``loop`` on the CPU (where one call per solve measured faster:
-    see ``benchmarks/results``)."""
+    see ``benchmarks/results``); ``vmap`` whenever the batch is split over ``n_devices`` > 1 devices, which
+    ``loop`` (one call per solve) cannot be."""
     if batch not in BATCH_MODES:
         raise ValueError(f"batch must be one of {BATCH_MODES}, got {batch!r}")
+    if n_devices > 1:
+        if batch == "loop":
+            raise ValueError(f"devices={n_devices} splits the vmapped call of each MPC update over the devices; "
+                             f"batch 'loop' makes one call per solve: use batch 'vmap' or 'auto' with several "
+                             f"devices, or devices=1 with 'loop'")
+        return "vmap"
     if batch == "auto":
         return "loop" if jax.default_backend() == "cpu" else "vmap"
     return batch
 
 
 # ------------------------------------------------------------------------------------------- helpers
+def _refuse_unsplit(scenario: Scenario, colav, n_devices: int) -> None:
+    """ValueError when ``n_devices`` > 1 were asked for but no controller of ``scenario`` splits its batch."""
+    if n_devices > 1 and not colav.splits_runs:
+        methods = sorted({m for m in colav.methods if m != "none"}) or ["none"]
+        raise ValueError(f"devices={n_devices}: no controller of scenario {scenario.name!r} splits its solves over "
+                         f"devices (methods: {', '.join(methods)}); only the grid-search methods' vmapped batch is "
+                         f"split (psbmpc, psbmpc_refine, sbmpc, psbmpc_2020, informed_sbmpc): use devices=1")
+
+
+def check_devices_split(scenario: Scenario, devices: int | str = 1, batch: str = "auto") -> tuple:
+    """The devices :func:`simulate` would split ``scenario``'s runs over (``devices``, ``batch`` as there),
+    checked without simulating (the controllers are built, nothing is compiled): ValueError for too many devices,
+    ``batch="loop"`` with several, or several for a scenario none of whose controllers splits its batch.  The
+    command line checks every scenario with it before the first simulation."""
+    devs = local_devices(devices)
+    resolve_batch_mode(batch, len(devs))
+    if len(devs) > 1:
+        _refuse_unsplit(scenario, build_controllers(scenario, BuildContext(mode="vmap", devices=devs)), len(devs))
+    return devs
+
+
 def grid_region(scenario: Scenario, routes) -> tuple:
     """The area the distance grid must cover: every route and start, plus the farthest a ship can travel
     in one horizon, plus a 25 % allowance for avoidance manoeuvres off the routes.  Returns (region, reach):
@@ -250,7 +280,7 @@ class _ClosedLoop:
     (measure, plan, move).  Ship 0 is the own-ship."""
 
     def __init__(self, scenario: Scenario, runs: int, seed: int, mode: str, key, snapshot_run: int,
-                 run_start: int = 0):
+                 run_start: int = 0, devices: tuple = ()):
         self.sc, self.R, self.snapshot_run = scenario, runs, snapshot_run
         mpc, sensor, config = scenario.mpc, scenario.sensor, scenario.mpc.config
         dt = scenario.dt
@@ -270,9 +300,12 @@ class _ClosedLoop:
 
         dtype = np.dtype(config.dtype)
         # which controller runs which ship (the registry); the grid-search methods get the solver's inputs
+        split = tuple(devices) if len(devices) > 1 else None        # None: the default device, unsplit
         context = BuildContext(mode=mode, params=params_as_arrays(mpc.params, dtype),
-                               samples=standard_normal_table(key, config, dtype), key=key)
+                               samples=standard_normal_table(key, config, dtype), key=key, devices=split)
         self.colav = build_controllers(scenario, context)
+        if split is not None:
+            _refuse_unsplit(scenario, self.colav, len(split))
         self.colav.init(runs)
         self.controlled = self.colav.controlled
         self.grid, self.grid_bounds = None, None
@@ -501,13 +534,18 @@ class _ClosedLoop:
 
 
 def simulate(scenario: Scenario, *, runs: int | None = None, seed: int | None = None, batch: str = "auto",
-             progress: bool = False, snapshot_run: int = 0, key=None, run_start: int = 0) -> SimulationResult:
+             progress: bool = False, snapshot_run: int = 0, key=None, run_start: int = 0,
+             devices: int | str = 1) -> SimulationResult:
     """Run ``runs`` Monte Carlo closed-loop simulations of ``scenario`` (default: the scenario's).
 
     Args:
         runs, seed: override the scenario's Monte Carlo settings.
         batch: ``"vmap"`` (all solves of one MPC update in one device call), ``"loop"`` (one call per solve)
-            or ``"auto"``.
+            or ``"auto"`` (``"vmap"`` when ``devices`` > 1).
+        devices: local devices to split the vmapped call's batch (every run and ship of an update) over: an
+            integer >= 1 (the first that many of ``jax.local_devices()``) or ``"all"``; default 1 (unsplit, the
+            default device).  The results equal one device's (:func:`psbmpc_jax.sharding.solve_batch`); only the
+            grid-search methods split (ValueError for a scenario with none, or with ``batch="loop"``).
         progress: draw a progress bar on stderr, one tick per MPC update (``tqdm`` if installed).
         snapshot_run: the run whose first manoeuvring own-ship solve is kept in full for plotting.
         key: PRNG key for the ``mc``/``ce`` estimators' samples (required for those; unused by ``quadrature``).
@@ -523,7 +561,8 @@ def simulate(scenario: Scenario, *, runs: int | None = None, seed: int | None = 
     check_run_size(scenario, runs)                 # a --runs override is held to the memory limit too
     if not 0 <= snapshot_run < runs:
         raise ValueError(f"snapshot_run must be in [0, {runs}), got {snapshot_run}")
-    mode = resolve_batch_mode(batch)
+    devs = local_devices(devices)
+    mode = resolve_batch_mode(batch, len(devs))
     check_dtype(scenario.mpc.config)
     if (runs, seed) != (scenario.runs, scenario.seed):   # the result records the settings as used
         scenario = dataclasses.replace(scenario, runs=runs, seed=seed)
@@ -532,11 +571,11 @@ def simulate(scenario: Scenario, *, runs: int | None = None, seed: int | None = 
                          "(psbmpc_jax.scenario.estimator_key(scenario) gives the scenario seed's key)")
     if key is not None:
         checks.prng_key(key, "key")
-    loop = _ClosedLoop(scenario, runs, seed, mode, key, snapshot_run, run_start)
+    loop = _ClosedLoop(scenario, runs, seed, mode, key, snapshot_run, run_start, devs)
     result = loop.run(progress)
     result.metrics = [run_metrics(result, r) for r in range(runs)]
     result.summary = summarize(result, mode=mode, grid_exceeded=loop.grid_exceeded(),
-                               clip_exceeded=loop.clip_exceeded())
+                               clip_exceeded=loop.clip_exceeded(), devices=len(devs))
     return result
 
 
@@ -587,10 +626,11 @@ def run_metrics(result: SimulationResult, r: int) -> dict:
 
 
 def summarize(result: SimulationResult, *, mode: str, grid_exceeded: bool | None,
-              clip_exceeded: bool | None = None) -> dict:
+              clip_exceeded: bool | None = None, devices: int = 1) -> dict:
     """Aggregate over runs (:func:`psbmpc_jax.sim.metrics.aggregate`, less its own-ship ``n_solves``), plus how
     the simulation ran: ``mpc_updates`` (MPC update instants), ``mpc_solves_total`` (solves of every PSB-MPC
-    ship in every run: the one count of solves), ``device_calls``, batch mode, device and timing.  ``solves``
+    ship in every run: the one count of solves), ``device_calls``, batch mode, device, ``devices`` (how many the
+    vmapped batch was split over; 1: unsplit) and timing.  ``solves``
     repeats ``mpc_solves_total`` under its older name (in memory only; metrics.json has the new name)."""
     sc = result.scenario
     summary = metrics_mod.aggregate(result.metrics)
@@ -609,6 +649,7 @@ def summarize(result: SimulationResult, *, mode: str, grid_exceeded: bool | None
         "batch_mode": mode,
         "device": str(jax.devices()[0].device_kind),
         "platform": jax.default_backend(),
+        "devices": int(devices),
         "mpc_updates": len(result.calls),
         "device_calls": int(sum(c["device_calls"] for c in result.calls)),
         "mpc_solves_total": int(sum(c["solves"] for c in result.calls)),
