@@ -7,7 +7,7 @@ import argparse
 import sys
 import time
 
-from .argtypes import positive_int, seed_int
+from .argtypes import nonneg_float, positive_float, positive_int, seed_int
 
 EPILOG_CAMPAIGN = ("Exit status: 0 all tasks done and runs.parquet written; 1 some tasks failed (the others are "
                    "on disk; run the same command again to do the rest); 2 bad input or a folder that cannot be "
@@ -20,26 +20,6 @@ def _campaign_runs(text: str) -> int:
     v = positive_int(text)
     if v > MAX_CAMPAIGN_RUNS:
         raise argparse.ArgumentTypeError(f"expected a number of runs <= {MAX_CAMPAIGN_RUNS}, got {v}")
-    return v
-
-
-def _positive_float(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number > 0, got {text!r}") from None
-    if not v > 0 or v == float("inf"):
-        raise argparse.ArgumentTypeError(f"expected a number > 0, got {text!r}")
-    return v
-
-
-def _nonneg_float(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {text!r}") from None
-    if not v >= 0 or v == float("inf"):
-        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {text!r}")
     return v
 
 
@@ -58,7 +38,7 @@ def add_campaign_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--runs", type=_campaign_runs, default=None, help="runs per scenario x method x seed")
     p.add_argument("--chunk-runs", type=positive_int, default=None, help="at most this many runs per task "
                                                                          "(default 50)")
-    p.add_argument("--duration", type=_positive_float, default=None, metavar="SECONDS",
+    p.add_argument("--duration", type=positive_float, default=None, metavar="SECONDS",
                    help="cut every scenario to this duration [s]")
     p.add_argument("--batch", choices=("auto", "vmap", "loop"), default=None, help="as psbmpc-jax run --batch")
     p.add_argument("--trajectories", action="store_true", default=None,
@@ -70,7 +50,7 @@ def add_campaign_arguments(p: argparse.ArgumentParser) -> None:
                         "--ray-address: CPUs of the local Ray")
     p.add_argument("--ray-address", default=None, help="Ray cluster address (ray.init(address=...)); the campaign "
                                                        "folder must be on a file system every node sees")
-    p.add_argument("--gpus-per-task", type=_nonneg_float, default=0.0, help="Ray: GPUs each task asks for")
+    p.add_argument("--gpus-per-task", type=nonneg_float, default=0.0, help="Ray: GPUs each task asks for")
     p.add_argument("--force", action="store_true",
                    help="the folder holds a different campaign: remove its campaign files and start afresh")
     p.add_argument("--quiet", action="store_true", help="no line per task")
