@@ -36,13 +36,13 @@ MAX_SPEED_MPS = 30.0
 #: Largest hull length and width [m] (above the largest ships afloat), refused everywhere above.
 MAX_SHIP_LENGTH_M = 500.0
 MAX_SHIP_WIDTH_M = 100.0
-#: Farthest any position or waypoint may lie from the local NED origin [m] (scenario files and the API alike; at
-#: 200 km float32 positions still resolve 2 cm, and a larger value is a unit mix-up: lat/lon or UTM given as
-#: local metres).
+#: Farthest any position or waypoint of a scenario file may lie from its NED origin [m] (at 200 km float32
+#: positions still resolve 2 cm, and a larger value is a unit mix-up: lat/lon or UTM given as local metres).
 MAX_POSITION_M = 200_000.0
-#: Farthest a route waypoint handed to the planner may lie [m]: the scenario bound plus 50 km, since the
-#: closed-loop simulator extends every route past its last waypoint (by 20 km, ``sim.vessel.ROUTE_EXTENSION_M``).
-MAX_WAYPOINT_M = MAX_POSITION_M + 50_000.0
+#: Farthest a position, waypoint or land vertex handed to the planner's API may lie from the frame's origin [m]:
+#: the Earth's circumference.  The API takes any metric frame, UTM included (the planner re-centres on the
+#: own-ship to keep float32 precision), so only values that are no position on Earth are refused.
+MAX_EARTH_M = 4.0e7
 
 #: Largest magnitude [rad] accepted for a course or direction: 2 pi.  Larger values are almost always degrees
 #: passed where radians belong (``np.deg2rad`` converts them).
@@ -236,14 +236,14 @@ def control_plan(value, name: str, *, n: int, lower, upper, box: str, what: str,
     return a, missing
 
 
-def local_positions(value: np.ndarray, name: str, limit: float = MAX_POSITION_M) -> np.ndarray:
+def local_positions(value: np.ndarray, name: str, limit: float = MAX_EARTH_M) -> np.ndarray:
     """``value`` (finite, last axis north/east [m]) unchanged, or an error when a point lies farther than
-    ``limit`` (:data:`MAX_POSITION_M`; waypoints :data:`MAX_WAYPOINT_M`) from the local origin."""
+    ``limit`` (:data:`MAX_EARTH_M`) from the frame's origin."""
     pts = np.asarray(value, float).reshape(-1, 2)
     far = np.hypot(pts[:, 0], pts[:, 1])
     if far.size and far.max() > limit:
         i = int(np.argmax(far))
-        raise ValueError(f"{name}: point {pts[i].tolist()} lies {far[i] / 1000:.6g} km from the local origin; at most "
-                         f"{limit / 1000:.0f} km allowed -- positions are local metres (north, east), "
-                         "not lat/lon or UTM")
+        raise ValueError(f"{name}: point {pts[i].tolist()} lies {far[i] / 1000:.6g} km from the frame's origin; at "
+                         f"most {limit / 1000:.0f} km allowed (no position on Earth is farther) -- positions are "
+                         "metres (north, east), not millimetres or degrees")
     return value

@@ -15,7 +15,8 @@ Every constructor validates its input and raises ``ValueError`` naming the field
 booleans and strings where numbers belong, a course with ``|chi| > 2 pi`` (degrees passed by mistake; use
 ``np.deg2rad``), speeds above :data:`psbmpc_jax.checks.MAX_SPEED_MPS` (30 m/s) for the own-ship and above
 :data:`MAX_OBSTACLE_SPEED_MPS` (60 m/s: tracker estimates are noisy) for obstacles, positions, waypoints and
-land vertices farther than :data:`psbmpc_jax.checks.MAX_POSITION_M` (200 km) from the local origin, hull lengths
+land vertices farther than :data:`psbmpc_jax.checks.MAX_EARTH_M` (the Earth's circumference) from the frame's
+origin (any metric frame, UTM included, is accepted), hull lengths
 above 500 m and widths above 100 m, ``None`` or a single
 :class:`Obstacle` / ring where a tuple or list belongs, and polygons that are not valid simple polygons
 (self-intersecting rings, zero area, holes outside their outer ring or overlapping each other:
@@ -158,8 +159,7 @@ class OwnShip:
         checks.local_positions(state[:2], "own_ship.state position (x, y)")
         object.__setattr__(self, "state", state)
         object.__setattr__(self, "waypoints", checks.local_positions(
-            checks.waypoints(self.waypoints, "own_ship.waypoints", 2), "own_ship.waypoints",
-            checks.MAX_WAYPOINT_M))
+            checks.waypoints(self.waypoints, "own_ship.waypoints", 2), "own_ship.waypoints"))
         object.__setattr__(self, "U_d", checks.speed(self.U_d, "own_ship.U_d"))
         object.__setattr__(self, "length", checks.hull(self.length, "own_ship.length", checks.MAX_SHIP_LENGTH_M))
         object.__setattr__(self, "width", checks.hull(self.width, "own_ship.width", checks.MAX_SHIP_WIDTH_M))
@@ -223,8 +223,7 @@ class Obstacle:
         object.__setattr__(self, "width", checks.hull(self.width, "obstacle.width", checks.MAX_SHIP_WIDTH_M))
         if self.waypoints is not None:
             object.__setattr__(self, "waypoints", checks.local_positions(
-                checks.waypoints(self.waypoints, "obstacle.waypoints", 2), "obstacle.waypoints",
-            checks.MAX_WAYPOINT_M))
+                checks.waypoints(self.waypoints, "obstacle.waypoints", 2), "obstacle.waypoints"))
         if self.leg_speeds is not None:
             if self.waypoints is None:
                 raise ValueError("obstacle.leg_speeds needs obstacle.waypoints (one speed per leg)")

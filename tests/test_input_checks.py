@@ -59,24 +59,22 @@ def test_obstacle_speed_limit():
 
 
 @pytest.mark.parametrize("make, match", [
-    (lambda: own(state=[2.5e5, 0.0, 0.0, 2.0]), r"own_ship.state position \(x, y\): point \[250000.0, 0.0\] lies "
-                                                r"250 km from the local origin; at most 200 km allowed"),
-    (lambda: own(waypoints=[[0.0, 0.0], [0.0, -3e5]]), r"own_ship.waypoints: point .* lies 300 km.* at most 250 km"),
-    (lambda: obstacle(state=[63.4e5, 10.4e5, 0.0, 0.0]), r"obstacle.state position .* not lat/lon or UTM"),
-    (lambda: obstacle(waypoints=[[0.0, 0.0], [1e9, 0.0]]), r"obstacle.waypoints: point .* at most 250 km"),
+    (lambda: own(state=[5e7, 0.0, 0.0, 2.0]), r"own_ship.state position \(x, y\): point \[50000000.0, 0.0\] lies "
+                                              r"50000 km from the frame's origin; at most 40000 km allowed"),
+    (lambda: own(waypoints=[[0.0, 0.0], [0.0, -3e9]]), r"own_ship.waypoints: point .* not millimetres or degrees"),
+    (lambda: obstacle(state=[1e9, 0.0, 0.0, 0.0]), r"obstacle.state position .* at most 40000 km"),
+    (lambda: obstacle(waypoints=[[0.0, 0.0], [1e9, 0.0]]), r"obstacle.waypoints: point .* at most 40000 km"),
     (lambda: own(length=501.0), r"own_ship.length must be at most 500 m \(a hull dimension in metres\), got 501"),
     (lambda: obstacle(width=5000.0), r"obstacle.width must be at most 100 m"),
-    (lambda: Situation(own(), (), polygons=(np.array([[0.0, 0.0], [0.0, 1.0], [3e5, 0.0]]),)),
-     r"polygon.* point \[300000.0, 0.0\] lies 300 km"),
+    (lambda: Situation(own(), (), polygons=(np.array([[0.0, 0.0], [0.0, 1.0], [5e7, 0.0]]),)),
+     r"polygon.* point \[50000000.0, 0.0\] lies 50000 km"),
 ])
-def test_positions_and_hulls_outside_their_plausible_range_are_refused(make, match):
+def test_positions_off_the_earth_and_implausible_hulls_are_refused(make, match):
     with pytest.raises(ValueError, match=match):
         make()
-    own(state=[1.99e5, 0.0, 0.0, 2.0], waypoints=[[0.0, 0.0], [0.0, 2e5]], length=500.0, width=100.0)
-    # a scenario's farthest waypoint, extended by the simulator past the route's end, is still accepted
-    from psbmpc_jax.sim.vessel import ROUTE_EXTENSION_M, extend_route
-    assert checks.MAX_POSITION_M + ROUTE_EXTENSION_M <= checks.MAX_WAYPOINT_M
-    own(waypoints=extend_route(np.array([[0.0, 0.0], [0.0, checks.MAX_POSITION_M]])))
+    # UTM coordinates (the planner re-centres on the own-ship) and the largest hulls are accepted
+    own(state=[7035254.0, 569796.0, 0.0, 2.0], waypoints=[[7035254.0, 569796.0], [7036254.0, 569796.0]],
+        length=500.0, width=100.0)
 
 
 # ------------------------------------------------------------------------------------------ types

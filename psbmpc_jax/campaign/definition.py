@@ -175,11 +175,11 @@ def load_definition(path, overrides: dict | None = None) -> CampaignDefinition:
 
 def scenario_path(item: str) -> pathlib.Path:
     """The file of a scenario given by name or path."""
-    from ..scenario.load import _builtin_path
+    from ..scenario.load import builtin_path
 
     if item.lower().endswith((".yaml", ".yml")) or "/" in item or os.sep in item:
         return pathlib.Path(item)
-    return _builtin_path(item)
+    return builtin_path(item)
 
 
 def resolve(defn: CampaignDefinition) -> dict:

@@ -33,6 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..checks import MAX_EARTH_M
 from ..numerics import wrap_angle_host
 
 __all__ = ["Tracks", "load_tracks", "load_runs", "tracks_from_simulation", "USER_COLUMNS", "OPTIONAL_COLUMNS", "derive_course_speed",
@@ -44,7 +45,7 @@ USER_COLUMNS = ("t_s", "vessel", "north_m", "east_m")
 OPTIONAL_COLUMNS = ("course_deg", "speed_mps")
 #: Largest |north|, |east| [m] of a track: the Earth's circumference (no position on Earth is farther from any
 #: local origin; a larger value is a unit error or a corrupt file).
-MAX_POSITION_M = 4.0e7
+MAX_POSITION_M = MAX_EARTH_M
 #: Largest speed [m/s] of a track, given or derived from the positions (194 kn: above any vessel, with room for
 #: position noise; a larger value is a unit error, e.g. km/h or mm/s, or a position jump).
 MAX_TRACK_SPEED_MPS = 100.0

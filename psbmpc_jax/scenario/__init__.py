@@ -17,7 +17,7 @@ registry hands the loader (:data:`psbmpc_jax.methods.registry.SECTIONS`).  Which
 take is the method registry's answer (:func:`psbmpc_jax.methods.get_method`).
 """
 
-from .load import builtin_scenarios, estimator_key, load_scenario, scenario_from_dict
+from .load import builtin_path, builtin_scenarios, estimator_key, load_scenario, scenario_from_dict
 from ..methods.smooth_settings import SMOOTH_METHODS
 from .schema import (COLAV_MODES, KNOT, METHODS, MOTION_MODELS, OWN_SHIP_ONLY_METHODS, RULE18_ROLES, SCENARIO_DIR,
                      VESSEL_MODELS, MPCSpec, Scenario, SensorSpec, ShipSpec)
@@ -26,5 +26,5 @@ from .ships import route_geometry
 __all__ = [
     "ShipSpec", "SensorSpec", "MPCSpec", "RULE18_ROLES", "MOTION_MODELS", "VESSEL_MODELS", "Scenario",
     "COLAV_MODES", "METHODS", "SMOOTH_METHODS", "OWN_SHIP_ONLY_METHODS", "KNOT", "SCENARIO_DIR",
-    "scenario_from_dict", "load_scenario", "builtin_scenarios", "estimator_key", "route_geometry",
+    "scenario_from_dict", "load_scenario", "builtin_scenarios", "builtin_path", "estimator_key", "route_geometry",
 ]

@@ -255,7 +255,9 @@ def builtin_scenarios() -> list[str]:
     return sorted({p.stem for p in SCENARIO_DIR.iterdir() if p.suffix in (".yaml", ".yml") and p.is_file()})
 
 
-def _builtin_path(name: str) -> pathlib.Path:
+def builtin_path(name: str) -> pathlib.Path:
+    """The file of the built-in scenario ``name`` (:func:`builtin_scenarios`); an unknown name raises ValueError
+    listing the built-in ones."""
     for ext in (".yaml", ".yml"):
         p = SCENARIO_DIR / f"{name}{ext}"
         if p.is_file():
@@ -306,7 +308,7 @@ def load_scenario(path_or_name, *, land_checks: str = "error", method: str | Non
         if not path.is_file():
             raise FileNotFoundError(f"scenario file not found: {path}")
     else:
-        path = _builtin_path(s)
+        path = builtin_path(s)
     where = str(path)
     data = yaml_load(read_utf8(path, "scenario file"), where)
     if not isinstance(data, dict):
