@@ -177,16 +177,18 @@ SCRIPT = textwrap.dedent("""
         res = unpack(got, conf.random_situation(seed), conf.SMALL_BEHAVIOURS, 0.0)
         ref = unpack(want, conf.random_situation(seed), conf.SMALL_BEHAVIOURS, 0.0)
         assert res.best_index == ref.best_index
-        np.testing.assert_array_equal(res.costs["total"], ref.costs["total"])
+        # per behaviour the same code on the same inputs, in float64 equal to the last bits or within rounding
+        # (as the module documents: XLA:CPU vectorises a 16-behaviour slice and the 64-behaviour table
+        # differently; one total of 30 came out 1 ulp apart at the default optimisation level)
+        np.testing.assert_allclose(res.costs["total"], ref.costs["total"], rtol=1e-14, atol=0)
     print("SHARDING-OK", len(devs))
 """)
 
 
 def test_four_host_devices(request):
     env = dict(os.environ)
-    # at XLA's default optimisation level, as users compile: the bit equality of sharded and single-device
-    # answers is a property of that program (with LLVM's optimisation off, conftest's default for the suite,
-    # one of 30 costs differed by 1 ulp)
+    # at XLA's default optimisation level, as users compile (LLVM's optimisation off, conftest's default for the
+    # suite, is another program)
     flags = env.get("XLA_FLAGS", "").replace(O0_FLAG, "")
     env["XLA_FLAGS"] = (flags + " --xla_force_host_platform_device_count=4").strip()
     env["PSBMPC_TEST_XLA_O0"] = "0"
