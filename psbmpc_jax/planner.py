@@ -197,7 +197,9 @@ class Planner:
         first control (``result.refined.apply``); with ``refine.previous_start`` it also holds the refined
         controls as ``warm_start``, the next refinement's start 1: shift them by the steps that pass before the
         next plan (:func:`psbmpc_jax.numerics.shift_controls`; unshifted they are taken as planned now).
-        ``None`` (default): the grid search alone, ``result.refined`` is None."""
+        ``None`` (default): the grid search alone, ``result.refined`` is None.  A refinement whose estimated
+        time exceeds the limit (:func:`psbmpc_jax.update_time.check_refine`) is refused with ``ResourceError``
+        before the grid search runs."""
         if refine is not None:
             from .refine import RefineSettings
 
@@ -206,6 +208,11 @@ class Planner:
                                  f"{type(refine).__name__}")
             refine.n_refine(self.config)           # a horizon that does not fit the config: ValueError now
         inputs, state, p, samples = self.prepare(situation, state, key=key, params=params)
+        if refine is not None:                     # its time, from the padded shapes, before anything compiles
+            from .update_time import check_refine
+
+            check_refine(self.config.n_steps, int(np.prod(np.shape(inputs.obstacles.probs))), refine.n_starts,
+                         refine.solver.max_outer, refine.solver.max_inner)
         origin = self.origin
         t0 = time.perf_counter()
         plan, _, ev = solve(inputs, state, p, samples, config=self.config, terms=self.terms)

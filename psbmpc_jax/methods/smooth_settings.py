@@ -92,6 +92,13 @@ MAX_STARTS = 64
 MAX_SOLVER_ITERATIONS = 100_000
 
 
+#: (max_outer, max_inner) of the solver when ``mpc.solver`` does not set them: Smooth-SBMPC's DOCP uses the
+#: library defaults of ``psbmpc_jax.nlp.SolverSettings``, the refinement its own cheap ``DEFAULT_SOLVER``
+#: (tests/test_update_time.py checks both against the JAX-side settings).  Used by the time estimate at load.
+DOCP_SOLVER_ITERATIONS = (20, 50)
+REFINE_SOLVER_ITERATIONS = (1, 8)
+
+
 MAX_FIS_NY = 100_001
 
 

@@ -201,6 +201,7 @@ def scenario_from_dict(data: dict, base_dir=None, source: str | None = None, *, 
                 n_vertices=int(sum(len(r) for rs in rings for r in rs)))
     _check_method_fit(mpc, own, targets)
     _check_solve_memory(mpc, len(targets), bool(rings))
+    _check_update_time(mpc, len(targets))
     return Scenario(name=name, description=description, own_ship=own, targets=targets, sensor=sensor, mpc=mpc,
                     polygons=rings, chart_info=info, dt=dt, duration=duration, runs=runs, seed=seed,
                     collision_distance=coll, source=source, evaluation=evaluation)
@@ -235,6 +236,28 @@ def _check_solve_memory(mpc, n_targets: int, land: bool) -> None:
     resources.check_solve(mpc.config, n_b, n_os, land, n_mc=n_mc,
                           settings={"horizon": "mpc.config.T (with dt_s and the behaviours)",
                                     "estimator": "mpc.config.n_samples", "n_mc": "mpc.sbmpc.n_mc"})
+
+
+def _check_update_time(mpc, n_targets: int) -> None:
+    """Refuse a refinement or Smooth-SBMPC configuration whose update would take longer than the limit
+    (:mod:`psbmpc_jax.update_time`), before anything is compiled."""
+    from .. import update_time
+    from ..methods.smooth_settings import DOCP_SOLVER_ITERATIONS, REFINE_SOLVER_ITERATIONS, SMOOTH_METHODS
+
+    given = mpc.solver.given()
+    names = {"iterations": "mpc.solver.max_outer x mpc.solver.max_inner"}
+    if mpc.method == "psbmpc_refine":
+        mo, mi = (given.get(k, d) for k, d in zip(("max_outer", "max_inner"), REFINE_SOLVER_ITERATIONS))
+        _, n_os = resources.padded_sizes(len(mpc.behaviours), n_targets, mpc.n_ps)
+        update_time.check_refine(mpc.config.n_steps, n_os, mpc.refine.n_starts, mo, mi,
+                                 names=dict(names, horizon="mpc.config.T (with dt)", starts="mpc.refine.n_starts"))
+    elif mpc.method in SMOOTH_METHODS:
+        sm = mpc.smooth
+        mo, mi = (given.get(k, d) for k, d in zip(("max_outer", "max_inner"), DOCP_SOLVER_ITERATIONS))
+        update_time.check_smooth(int(round(sm.T_init / sm.dt)), int(round(sm.T_mpc / sm.dt)), n_targets, sm.n_starts,
+                                 mo, mi, init_only=mpc.method == "sbmpc_init",
+                                 names=dict(names, T_init="mpc.smooth.T_init_s (with dt_s)",
+                                            T_mpc="mpc.smooth.T_mpc_s (with dt_s)", starts="mpc.smooth.n_starts"))
 
 
 def estimator_key(scenario: Scenario, seed: int | None = None):

@@ -264,6 +264,7 @@ class SmoothSBMPCPlanner:
             pts = np.concatenate([r for poly in self.polygons for r in poly])
             self.origin = snap_origin(0.5 * (pts.min(axis=0) + pts.max(axis=0)))
         self._charts: dict = {}
+        self._time_checked: set = set()
         self._w = cast_tree(self.weights, self.dtype)
         self._m = cast_tree(self.model, self.dtype)
 
@@ -318,6 +319,20 @@ class SmoothSBMPCPlanner:
         valid = ~np.all(np.isnan(a), axis=(-2, -1))
         return Previous(np.asarray(np.nan_to_num(a), self.dtype), np.asarray(valid))
 
+    def _check_time(self, n_targets: int) -> None:
+        """Refuse an update whose estimated time (one run) exceeds the limit (:mod:`psbmpc_jax.update_time`),
+        before anything is compiled; once per number of targets."""
+        if n_targets in self._time_checked:
+            return
+        from ..update_time import check_smooth
+
+        st = self.settings
+        check_smooth(st.n_init, st.n_mpc, n_targets, self.n_starts, self.solver.max_outer, self.solver.max_inner,
+                     init_only=self.init_only, names={"T_init": "settings.T_init / dt", "T_mpc": "settings.T_mpc / dt",
+                                                      "starts": "n_starts",
+                                                      "iterations": "solver.max_outer x max_inner"})
+        self._time_checked.add(n_targets)
+
     def _statics(self):
         return dict(settings=self.settings, n_starts=self.n_starts, batch=self.batch, init_only=self.init_only)
 
@@ -331,7 +346,9 @@ class SmoothSBMPCPlanner:
 
         Raises ``ValueError`` naming the input for a wrong shape, a non-finite value, a course outside
         ``|course| <= 2 pi`` (degrees?), a speed outside 0 to 30 m/s, ``last`` outside the DOCP's box
-        (U_m in [0.1, 1], χ_m in [-pi/2, pi/2]) or a zero-length route leg."""
+        (U_m in [0.1, 1], χ_m in [-pi/2, pi/2]) or a zero-length route leg; ``ResourceError`` (a ValueError)
+        before anything is compiled when the update's estimated time exceeds the limit
+        (:mod:`psbmpc_jax.update_time`, naming the setting)."""
         state0 = _array(state0, "state0", lambda s: s == (4,), "[4] (north, east, course, speed)")
         route = _array(route, "route", lambda s: len(s) == 2 and s[1] == 2 and s[0] >= 2, "[W >= 2, 2] waypoints")
         targets = _array(targets, "targets", lambda s: len(s) == 2 and s[1] == 4, "[I, 4] (north, east, course, "
@@ -343,6 +360,7 @@ class SmoothSBMPCPlanner:
         _offsets(last, "last")
         _route_legs(route)
         prev = self._previous(previous, ())
+        self._check_time(targets.shape[0])
         origin = self._origin_for(state0[:2])
         land, buf = self.charts(origin)
         s, r, t = self._local(state0, route, targets, origin)
@@ -368,6 +386,7 @@ class SmoothSBMPCPlanner:
         _offsets(last, "last")
         _route_legs(route)
         prev = self._previous(previous, (R,))
+        self._check_time(targets.shape[1])
         origin = self._origin_for(states[:, :2])
         land, buf = self.charts(origin)
         s, r, t = self._local(states, route, targets, origin)
