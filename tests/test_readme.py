@@ -141,3 +141,31 @@ def test_docs_nav_lists_every_page():
     assert len(nav) == len(set(nav)), "a page is listed twice in mkdocs.yml's nav"
     assert sorted(nav) == pages, (
         f"in nav but missing: {sorted(set(nav) - set(pages))}; not in nav: {sorted(set(pages) - set(nav))}")
+
+
+#: The README's "Tested limits" rows and the benchmarks/bench_tested_limits.py case each comes from.
+TESTED_LIMIT_ROWS = {"behaviours": "behaviours_65k", "obstacle scenarios": "scenarios", "horizon": "horizon_100k",
+                     "Monte Carlo runs": "runs", "track length (`evaluate_tracks`)": "track_1e7"}
+
+
+def test_readme_tested_limits_come_from_the_committed_measurements():
+    """Every row of the README's "Tested limits" table states the peak memory and time of its committed
+    measurement (benchmarks/results/tested_limits_cpu_*.json), and the case ran without an error."""
+    import json
+
+    from psbmpc_jax.limits import fmt_bytes
+
+    section = README.read_text().split("## Tested limits", 1)[1].split("\n## ", 1)[0]
+    rows = {cells[0]: cells for cells in ([c.strip() for c in line.strip("|").split("|")]
+                                          for line in section.splitlines() if line.startswith("| "))}
+    measured = {}
+    for path in sorted((ROOT / "benchmarks" / "results").glob("tested_limits_cpu_*.json")):
+        for point in json.loads(path.read_text())["points"]:
+            measured[point["case"]] = point                                   # the latest file of a case wins
+    for label, case in TESTED_LIMIT_ROWS.items():
+        assert label in rows, f"README Tested limits: no row {label!r}"
+        point = measured[case]
+        assert "error" not in point, (case, point["error"])
+        _, _, memory, wall = rows[label]
+        assert memory == fmt_bytes(point["peak_rss_bytes"]), (label, memory, point["peak_rss_bytes"])
+        assert wall == f"{point['wall_s']:.0f} s", (label, wall, point["wall_s"])
