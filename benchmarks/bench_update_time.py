@@ -158,6 +158,10 @@ def _fit_init(init, out):
     A = np.array([[p["n_init"] * (p["n_init"] + 1) / p["median_s"],
                    p["n_init"] * (p["n_init"] + 1) * p["n_targets"] / p["median_s"]] for p in init])
     a, b = np.linalg.lstsq(A, np.ones(len(init)), rcond=None)[0]
+    # an upper bound: scaled so that no measured case is above the model (the stage's time depends on how much
+    # land the predictions reach, not only on the shapes)
+    scale = max(p["median_s"] / (p["n_init"] * (p["n_init"] + 1) * (a + b * p["n_targets"])) for p in init)
+    a, b = a * scale, b * scale
     out["SMOOTH_INIT"] = (float(a), float(b))
     for p in init:
         out["checks"].append((p["case"], p["median_s"], p["n_init"] * (p["n_init"] + 1) * (a + b * p["n_targets"])))

@@ -42,10 +42,13 @@ REFINE_ITER = (0.496e-3, 5.18e-6)
 #: iterations of one start: 23.4 ms for 1 start - 16.5 ms per start = 6.9 ms at N = 300, 3.4 iterations.
 REFINE_FIXED_ITERATIONS = 3.4
 #: Smooth-SBMPC initialisation stage: N_init x (N_init + 1) x (SMOOTH_INIT[0] + SMOOTH_INIT[1] x targets)
-#: (N_init inner steps, each predicting 39 behaviours over N_init steps), least squares on the relative error over
-#: N_init 30 / 60 / 120 / 240 with 4 targets and 60 with 1 (measured 48, 194, 1 122, 2 603 and 117 ms, modelled
-#: 49, 193, 766, 3 050 and 117 ms; benchmarks/results/update_time_cpu_20261129T130713Z.json and ...131941Z.json).
-SMOOTH_INIT = (2.495e-5, 6.94e-6)
+#: (N_init inner steps, each predicting 39 behaviours over N_init steps).  An upper bound: the stage's time also
+#: depends on how much land the predictions reach (N_TP's culling), so the least-squares fit over N_init 30 / 60 /
+#: 90 / 120 / 240 with 1 to 4 targets on the reconstruction channel is scaled by 2.94, until no measured case
+#: lies above it (90 steps with 2 targets, the predictions reaching the peninsula: 1 025 ms; the others are 2.1 to
+#: 3.7 times below it, e.g. 240 steps with 4 targets 2 603 ms against 9 528 modelled;
+#: benchmarks/results/update_time_cpu_20261129T13*.json).
+SMOOTH_INIT = (8.57e-5, 1.98e-5)
 #: Smooth-SBMPC DOCP, one inner iteration of one start: SMOOTH_ITER[0] (the solver's own machinery: optax L-BFGS
 #: and its zoom line search, measured on a trivial objective of the same size) + SMOOTH_ITER[1] x N_mpc x
 #: (1 + targets) (J_d's value and gradient): 83.3 ms for 240 inner iterations at N_mpc 20 with 4 targets, 0.347 ms

@@ -147,8 +147,9 @@ def test_smooth_planner_refuses_before_compiling(monkeypatch):
 
 @pytest.mark.skipif(not SLOW, reason="times a compiled initialisation stage (PSBMPC_SLOW_TESTS=1)")
 def test_the_model_against_a_fresh_measurement():
-    """The initialisation stage at T_init 90 s with 2 targets, not one of the measured sizes: the estimate
-    within a factor 3 of the median of 5 calls (a shared machine's load moves the times)."""
+    """The initialisation stage at T_init 75 s with 3 targets, not one of the measured sizes: the estimate is an
+    upper bound (measured median at most 1.5 times it: a shared machine's load moves the times) and not more
+    than 10 times the measurement."""
     import sys
 
     sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "benchmarks"))
@@ -156,13 +157,13 @@ def test_the_model_against_a_fresh_measurement():
     from psbmpc_jax.smooth import SmoothSBMPCPlanner
     from psbmpc_jax.smooth.init_stage import SmoothSettings
 
-    planner = SmoothSBMPCPlanner(channel_polygons(), settings=SmoothSettings(T_init=90.0), init_only=True)
+    planner = SmoothSBMPCPlanner(channel_polygons(), settings=SmoothSettings(T_init=75.0), init_only=True)
     own, route, targets, last = situation(50.0)
-    planner.plan(own, route, targets[:2], last)
+    planner.plan(own, route, targets[:3], last)
     times = []
     for _ in range(5):
         t0 = time.perf_counter()
-        planner.plan(own, route, targets[:2], last)
+        planner.plan(own, route, targets[:3], last)
         times.append(time.perf_counter() - t0)
-    est = update_time.smooth_parts(90, 20, 2, 1, 1, 1, init_only=True)["init"]
-    assert est / 3 < float(np.median(times)) < 3 * est, (est, times)
+    est = update_time.smooth_parts(75, 20, 3, 1, 1, 1, init_only=True)["init"]
+    assert est / 10 < float(np.median(times)) < 1.5 * est, (est, times)
