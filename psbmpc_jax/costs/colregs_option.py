@@ -14,7 +14,8 @@ Encounter of obstacle i (own-ship at p_0 with course χ_0 and speed U_0; obstacl
 * head-on: |β| < 22.5° and |wrap(Δχ − π)| < 22.5°; overtaken (own-ship stands on): |β| > 112.5°, U_i > U_0,
   |Δχ| < 67.5°; crossing with the target on the port side (own-ship stands on): −112.5° < β < 0, 0 < Δχ < π,
   not head-on; crossing from starboard (own-ship gives way): 0 < β < 112.5°, −π < Δχ < 0, not head-on;
-  overtaking (own-ship gives way): |β| < 67.5°, U_0 > U_i, |Δχ| < 67.5°;
+  overtaking (own-ship gives way): the own-ship more than 22.5° abaft the target's beam (|α| > 112.5°, α the
+  bearing of the own-ship from the target relative to the target's course) and U_0 > U_i;
 * engaged: valid, range < engage·R_i and not past and clear; past and clear: not closing and range > clear·R_i;
 * risk: closing and d_cpa < act_cpa·R_i.
 
@@ -71,7 +72,8 @@ def encounter(p0, chi0, u0, pi_, vi, radius, valid, *, engage, act_cpa, act_rang
     overtaken = (jnp.abs(beta) > D112) & (ui > u0) & (jnp.abs(dchi) < D67)
     cross_port = (beta > -D112) & (beta < 0) & (dchi > 0) & ~head_on
     cross_stbd = (beta > 0) & (beta < D112) & (dchi < 0) & ~head_on
-    overtaking = (jnp.abs(beta) < D67) & (u0 > ui) & (jnp.abs(dchi) < D67)
+    alpha = wrap_angle(jnp.arctan2(-dy, -dx) - jnp.arctan2(vi[1], vi[0]))       # own-ship seen from the target
+    overtaking = (jnp.abs(alpha) > D112) & (u0 > ui)
     clear_ = ~closing & (rng > clear * radius)
     engaged = valid & (rng < engage * radius) & ~clear_
     risk = closing & (d_cpa < act_cpa * radius)
