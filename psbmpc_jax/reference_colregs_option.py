@@ -34,7 +34,7 @@ def encounter(p0, chi0, u0, obstacles, *, engage, act_cpa, act_range, clear):
         overtaken = abs(beta) > d112 and ui > u0 and abs(dchi) < d67
         alpha = _wrap(math.atan2(-dy, -dx) - math.atan2(vy, vx))
         overtaking = abs(alpha) > d112 and u0 > ui
-        cross_port = -d112 < beta < 0 and dchi > 0 and not head_on
+        cross_port = beta < 0 and dchi > 0 and not head_on
         cross_stbd = 0 < beta < d112 and dchi < 0 and not head_on
         past_clear = (not closing) and rng > clear * radius
         engaged = bool(valid) and rng < engage * radius and not past_clear

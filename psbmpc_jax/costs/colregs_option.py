@@ -12,8 +12,9 @@ Encounter of obstacle i (own-ship at p_0 with course χ_0 and speed U_0; obstacl
 * nominal CPA: both keep their present velocities; t_cpa = max(0, −Δp·Δv / |Δv|²), d_cpa = |Δp + Δv t_cpa|;
   *closing* when Δp·Δv < 0;
 * head-on: |β| < 22.5° and |wrap(Δχ − π)| < 22.5°; overtaken (own-ship stands on): |β| > 112.5°, U_i > U_0,
-  |Δχ| < 67.5°; crossing with the target on the port side (own-ship stands on): −112.5° < β < 0, 0 < Δχ < π,
-  not head-on; crossing from starboard (own-ship gives way): 0 < β < 112.5°, −π < Δχ < 0, not head-on;
+  |Δχ| < 67.5°; crossing with the target on the port side (own-ship stands on): β < 0, 0 < Δχ < π, not
+  head-on (the whole port side: a target that drifts abaft the beam while crossing astern stays one to stand on
+  for, as the encounter was judged when it began); crossing from starboard (own-ship gives way): 0 < β < 112.5°, −π < Δχ < 0, not head-on;
   overtaking (own-ship gives way): the own-ship more than 22.5° abaft the target's beam (|α| > 112.5°, α the
   bearing of the own-ship from the target relative to the target's course) and U_0 > U_i;
 * engaged: valid, range < engage·R_i and not past and clear; past and clear: not closing and range > clear·R_i;
@@ -70,7 +71,7 @@ def encounter(p0, chi0, u0, pi_, vi, radius, valid, *, engage, act_cpa, act_rang
     dchi = wrap_angle(jnp.arctan2(vi[1], vi[0]) - chi0)
     head_on = (jnp.abs(beta) < D22) & (jnp.abs(wrap_angle(dchi - math.pi)) < D22)
     overtaken = (jnp.abs(beta) > D112) & (ui > u0) & (jnp.abs(dchi) < D67)
-    cross_port = (beta > -D112) & (beta < 0) & (dchi > 0) & ~head_on
+    cross_port = (beta < 0) & (dchi > 0) & ~head_on
     cross_stbd = (beta > 0) & (beta < D112) & (dchi < 0) & ~head_on
     alpha = wrap_angle(jnp.arctan2(-dy, -dx) - jnp.arctan2(vi[1], vi[0]))       # own-ship seen from the target
     overtaking = (jnp.abs(alpha) > D112) & (u0 > ui)
@@ -153,7 +154,7 @@ class StandOnTerm:
     engage_radii: float = 40.0
     act_cpa_radii: float = 2.0
     act_range_radii: float = 4.0
-    clear_radii: float = 3.0
+    clear_radii: float = 4.0
     chi_apparent: float = math.radians(30.0)
     du_apparent: float = 0.5
     K_stand_on: float = 1000.0
@@ -175,7 +176,7 @@ class ApparentTerm:
     engage_radii: float = 40.0
     act_cpa_radii: float = 2.0
     act_range_radii: float = 4.0
-    clear_radii: float = 3.0
+    clear_radii: float = 4.0
     chi_apparent: float = math.radians(30.0)
     du_apparent: float = 0.5
     K_apparent: float = 100.0
@@ -193,7 +194,7 @@ class HoldTerm:
     engage_radii: float = 40.0
     act_cpa_radii: float = 2.0
     act_range_radii: float = 4.0
-    clear_radii: float = 3.0
+    clear_radii: float = 4.0
     chi_apparent: float = math.radians(30.0)
     K_hold: float = 100.0
 
@@ -209,7 +210,7 @@ class EarlyTerm:
     engage_radii: float = 40.0
     act_cpa_radii: float = 2.0
     act_range_radii: float = 4.0
-    clear_radii: float = 3.0
+    clear_radii: float = 4.0
     chi_apparent: float = math.radians(30.0)
     K_early: float = 100.0
 

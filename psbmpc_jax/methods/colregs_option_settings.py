@@ -32,7 +32,7 @@ class ColregsOptionSpec:
             below this many R_i is a risk of collision (default 2).
         act_range_radii: below this range (in R_i) the stand-on vessel may act, if the CPA is a risk (Rule
             17(a)(ii)/(b)); above it the give-way vessel can still act, so it keeps course and speed (default 4).
-        clear_radii: a target is past and clear when its range opens and exceeds this many R_i (default 3).
+        clear_radii: a target is past and clear when its range opens and exceeds this many R_i (default 4).
         chi_apparent_deg: course alterations below this are not readily apparent (Rule 8(b); default 30).
         du_apparent: speed-factor changes below this are not readily apparent (default 0.5).
         K_stand_on, K_port, K_apparent, K_hold, K_early: the terms' weights (>= 0).
@@ -46,7 +46,7 @@ class ColregsOptionSpec:
     engage_radii: float = 40.0
     act_cpa_radii: float = 2.0
     act_range_radii: float = 4.0
-    clear_radii: float = 3.0
+    clear_radii: float = 4.0
     chi_apparent_deg: float = 30.0
     du_apparent: float = 0.5
     K_stand_on: float = 1000.0
