@@ -157,8 +157,8 @@ class StandOnTerm:
     clear_radii: float = 4.0
     chi_apparent: float = math.radians(30.0)
     du_apparent: float = 0.5
-    K_stand_on: float = 1000.0
-    K_port: float = 1000.0
+    K_stand_on: float = 10000.0
+    K_port: float = 10000.0
 
     def __call__(self, ctx: Context, params, config, samples) -> TermValue:
         e = context_encounter(ctx, self)

@@ -49,8 +49,8 @@ class ColregsOptionSpec:
     clear_radii: float = 4.0
     chi_apparent_deg: float = 30.0
     du_apparent: float = 0.5
-    K_stand_on: float = 1000.0
-    K_port: float = 1000.0
+    K_stand_on: float = 10000.0
+    K_port: float = 10000.0
     K_apparent: float = 100.0
     K_hold: float = 100.0
     K_early: float = 100.0
