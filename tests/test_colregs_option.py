@@ -210,3 +210,21 @@ def test_gradients_equal_finite_differences(name):
             fd = (float(fn(jnp.asarray(xp), last)[0]) - float(fn(jnp.asarray(xm), last)[0])) / (2 * h)
             assert g[idx] == pytest.approx(fd, rel=1e-5, abs=1e-6), (name, idx)
         assert np.all(np.isfinite(g))
+
+
+def test_controllers_get_the_terms_only_when_enabled():
+    from psbmpc_jax.methods.base import BuildContext
+    from psbmpc_jax.methods.registry import REGISTRY, build_controllers
+
+    sc = scenario_from_dict(base_scenario())
+    ctx = BuildContext(params=sc.mpc.params)
+    off = build_controllers(sc, ctx).controllers[0]
+    assert off.terms == DEFAULT_TERMS and "colregs_option" not in REGISTRY["psbmpc"].record(sc)
+    on_sc = scenario_from_dict(base_scenario(colregs_option={"enabled": True}))
+    on = build_controllers(on_sc, ctx).controllers[0]
+    assert on.terms[:4] == DEFAULT_TERMS and [t.name for t in on.terms[4:]] == ["stand_on", "apparent", "hold",
+                                                                                  "early"]
+    assert REGISTRY["psbmpc"].record(on_sc)["colregs_option"]["enabled"] is True
+    # a method the option does not reach is refused when built too (e.g. after the file was parsed for psbmpc)
+    with pytest.raises(ValueError, match="method psbmpc_refine does not take it"):
+        REGISTRY["psbmpc_refine"].build(on_sc, (0,), ctx)
