@@ -42,7 +42,7 @@ def encounter(p0, chi0, u0, obstacles, *, engage, act_cpa, act_range, clear):
         may_act = risk and rng < act_range * radius
         stand_on = engaged and (cross_port or overtaken) and not overtaking
         out.append({"engaged": engaged, "stand_on_hold": stand_on and not may_act,
-                    "port_act": stand_on and may_act and beta < 0,
+                    "port_act": engaged and cross_port and not overtaking and may_act,
                     "give_way": engaged and risk and (head_on or cross_stbd or overtaking)})
     return out
 

@@ -130,6 +130,8 @@ def test_encounter_classifies_the_textbook_cases():
     assert flags(100.0, 100.0, -90.0, 2.0)["give_way"]
     assert flags(300.0, 0.0, 180.0, 2.0)["give_way"]
     assert flags(-60.0, 0.0, 0.0, 3.0)["stand_on_hold"]
+    close_astern = flags(-20.0, 0.0, 0.0, 3.0)      # overtaken, a risk within 4 R: may act, to either side
+    assert not close_astern["stand_on_hold"] and not close_astern["port_act"]
     gone = flags(-100.0, 0.0, 180.0, 2.0)        # astern and opening beyond 3 R: past and clear
     assert not any(gone.values())
 

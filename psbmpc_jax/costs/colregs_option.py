@@ -25,7 +25,7 @@ Terms (each ``[B]``, averaged over the n_M maneuvers; χ_{−1}, u_{−1} = ``la
 * ``stand_on`` (Rule 17): while some engaged stand-on target is not yet a risk within act_range·R_i (the
   give-way vessel can still act), K_stand_on · mean_m[((χ_m − χ_{m−1})/χ_a)² + ((u_m − u_{m−1})/u_a)²] (keep
   course and speed); once one is a risk within that range and on the port side, K_port · mean_m (min(χ_m, 0)/χ_a)²
-  (Rule 17(c): not to port for a vessel on the port side).
+  (Rule 17(c), a crossing rule: not to port for a crossing vessel on the port side).
 * ``apparent`` (Rule 8(b)): while any target is engaged, K_apparent · mean_m[b(χ_m; χ_a) + b(χ_m − χ_{m−1}; χ_a)
   + b(1 − u_m; u_a)], b(z; a) = sin²(π z / a) for |z| < a, else 0: 0 for no alteration and for a readily
   apparent one, 1 at half the threshold (C¹).
@@ -80,7 +80,9 @@ def encounter(p0, chi0, u0, pi_, vi, radius, valid, *, engage, act_cpa, act_rang
     risk = closing & (d_cpa < act_cpa * radius)
     may_act = risk & (rng < act_range * radius)
     stand_on = engaged & (cross_port | overtaken) & ~overtaking
-    return {"engaged": engaged, "stand_on_hold": stand_on & ~may_act, "port_act": stand_on & may_act & (beta < 0),
+    # Rule 17(c) is a crossing rule: an overtaking target dead astern has no defined side (β = ±180° flips with noise)
+    port_act = engaged & cross_port & ~overtaking & may_act
+    return {"engaged": engaged, "stand_on_hold": stand_on & ~may_act, "port_act": port_act,
             "give_way": engaged & risk & (head_on | cross_stbd | overtaking)}
 
 
