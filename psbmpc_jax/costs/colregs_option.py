@@ -24,8 +24,8 @@ Terms (each ``[B]``, averaged over the n_M maneuvers; χ_{−1}, u_{−1} = ``la
 
 * ``stand_on`` (Rule 17): while some engaged stand-on target is not yet a risk within act_range·R_i (the
   give-way vessel can still act), K_stand_on · mean_m[((χ_m − χ_{m−1})/χ_a)² + ((u_m − u_{m−1})/u_a)²] (keep
-  course and speed); once one is a risk within that range and on the port side, K_port · mean_m (min(χ_m, 0)/χ_a)²
-  (Rule 17(c), a crossing rule: not to port for a crossing vessel on the port side).
+  course and speed); once a crossing target on the port side is a risk within that range, K_port · mean_m
+  (min(χ_m, 0)/χ_a)² (Rule 17(c), a crossing rule: not to port for a crossing vessel on the port side).
 * ``apparent`` (Rule 8(b)): while any target is engaged, K_apparent · mean_m[b(χ_m; χ_a) + b(χ_m − χ_{m−1}; χ_a)
   + b(1 − u_m; u_a)], b(z; a) = sin²(π z / a) for |z| < a, else 0: 0 for no alteration and for a readily
   apparent one, 1 at half the threshold (C¹).
