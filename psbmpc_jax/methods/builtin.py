@@ -26,6 +26,7 @@ import dataclasses
 from dataclasses import asdict
 
 from .base import BuildContext, DesignShip, Method
+from .colregs_option_settings import OPTION_METHODS, ColregsOptionSpec, parse_colregs_option
 from .informed_settings import InformedSpec, parse_informed
 from .refine_settings import RefineSpec, parse_refine
 from .registry import SectionContext, register, register_section
@@ -48,6 +49,20 @@ def resolved(obj):
     return obj
 
 
+def option_terms(scenario, method: str) -> tuple:
+    """The COLREGS option's cost terms (``mpc.colregs_option``; empty when it is off) for ``method``; ValueError
+    when it is on and ``method`` is not one of the methods it extends (docs/colregs_option.md)."""
+    spec = scenario.mpc.colregs_option
+    if not spec.enabled:
+        return ()
+    if method not in OPTION_METHODS:
+        raise ValueError(f"mpc.colregs_option is enabled, but method {method} does not take it (only "
+                         f"{', '.join(OPTION_METHODS)} do)")
+    from ..costs.colregs_option import option_terms as build
+
+    return build(spec)
+
+
 def _sbmpc_family_grounding(scenario) -> bool:
     """The grounding term only where there is land to ground on (``mpc.sbmpc.grounding`` and polygons)."""
     return bool(scenario.mpc.sbmpc.grounding and scenario.polygons)
@@ -62,12 +77,17 @@ class Psbmpc(Method):
     def build(self, scenario, ships, context: BuildContext):
         from .grid import GridController
 
+        from ..evaluate import DEFAULT_TERMS
+
         return GridController(ships, context.mode, scenario.mpc, context.params, context.samples, method=self.name,
-                              devices=context.devices)
+                              terms=DEFAULT_TERMS + option_terms(scenario, self.name), devices=context.devices)
 
     def record(self, scenario) -> dict:
         m = scenario.mpc      # its weights and solver configuration are mpc.params / mpc.config (recorded apart)
-        return {"preset": m.preset, "n_ps": m.n_ps, "n_cbs": len(m.behaviours)}
+        out = {"preset": m.preset, "n_ps": m.n_ps, "n_cbs": len(m.behaviours)}
+        if m.colregs_option.enabled:       # only then: the records of the published cost stay as they were
+            out["colregs_option"] = asdict(m.colregs_option)
+        return out
 
     def describe(self, scenario) -> str:
         m = scenario.mpc
@@ -85,6 +105,7 @@ class Refined(Method):
         self.base, self.name, self.description = base, name, description
 
     def build(self, scenario, ships, context: BuildContext):
+        option_terms(scenario, self.name)          # refused when mpc.colregs_option is on (not in the refinement)
         controller = self.base.build(scenario, ships, context)
         controller.enable_refinement()
         controller.method = self.name
@@ -113,7 +134,8 @@ class Sbmpc(Method):
     def terms(self, scenario):
         from .sbmpc_family import sbmpc_terms
 
-        return sbmpc_terms(scenario.mpc.sbmpc, with_grounding=_sbmpc_family_grounding(scenario))
+        return (sbmpc_terms(scenario.mpc.sbmpc, with_grounding=_sbmpc_family_grounding(scenario))
+                + option_terms(scenario, self.name))
 
     def build(self, scenario, ships, context: BuildContext):
         from .grid import GridController
@@ -122,7 +144,10 @@ class Sbmpc(Method):
                               n_ps=1, terms=self.terms(scenario), devices=context.devices)
 
     def record(self, scenario) -> dict:
-        return {"sbmpc": asdict(scenario.mpc.sbmpc), "grounding_term": _sbmpc_family_grounding(scenario)}
+        out = {"sbmpc": asdict(scenario.mpc.sbmpc), "grounding_term": _sbmpc_family_grounding(scenario)}
+        if scenario.mpc.colregs_option.enabled:
+            out["colregs_option"] = asdict(scenario.mpc.colregs_option)
+        return out
 
     def describe(self, scenario) -> str:
         return f"{len(scenario.mpc.behaviours)} behaviours, straight-line targets"
@@ -137,7 +162,8 @@ class Psbmpc2020(Sbmpc):
     def terms(self, scenario):
         from .sbmpc_family import psbmpc2020_terms
 
-        return psbmpc2020_terms(scenario.mpc.sbmpc, with_grounding=_sbmpc_family_grounding(scenario))
+        return (psbmpc2020_terms(scenario.mpc.sbmpc, with_grounding=_sbmpc_family_grounding(scenario))
+                + option_terms(scenario, self.name))
 
 
 class InformedSbmpc(Method):
@@ -154,7 +180,8 @@ class InformedSbmpc(Method):
 
         inf = scenario.mpc.informed
         return GridController(ships, context.mode, scenario.mpc, context.params, context.samples,
-                              terms=informed_terms(inf), n_ps=1, method=self.name, informed=True, d_init=inf.d_init,
+                              terms=informed_terms(inf) + option_terms(scenario, self.name), n_ps=1,
+                              method=self.name, informed=True, d_init=inf.d_init,
                               devices=context.devices)
 
     def record(self, scenario) -> dict:
@@ -258,6 +285,7 @@ register_section("refine", _refine_section, RefineSpec, after_config=True)
 register_section("sbmpc", lambda d, ctx: parse_sbmpc(d), SbmpcSettings, after_config=True)
 register_section("informed", lambda d, ctx: parse_informed(d), InformedSpec, after_config=True)
 register_section("two_level", lambda d, ctx: parse_two_level(d), TwoLevelSpec, after_config=True)
+register_section("colregs_option", lambda d, ctx: parse_colregs_option(d, ctx.method), ColregsOptionSpec)
 
 PSBMPC = Psbmpc()
 for _method in (PSBMPC, Refined(PSBMPC, "psbmpc_refine", "PSB-MPC grid search + gradient refinement"), Sbmpc(),

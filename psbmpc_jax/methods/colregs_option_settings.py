@@ -1,0 +1,102 @@
+"""Settings of the COLREGS option (beyond the papers): the ``mpc.colregs_option`` section of a scenario file,
+parsed here (registered by :mod:`psbmpc_jax.methods.builtin`).  Light: no JAX.
+
+The option adds cost terms (:mod:`psbmpc_jax.costs.colregs_option`) to the grid-search methods of the PSB-MPC
+family (``psbmpc``, ``sbmpc``, ``psbmpc_2020``, ``informed_sbmpc``).  It is off by default: without the section,
+or with ``enabled: false``, every method runs its published cost unchanged.  docs/colregs_option.md."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from ..config import as_bool, as_mapping, as_number, check_keys
+
+#: The option's terms, in the order they are added: Rule 17 stand-on duty, Rule 8 readily apparent alterations,
+#: Rule 8 / 13 hold the avoidance heading until past and clear, early action by the give-way vessel.
+TERM_KEYS = ("stand_on", "apparent", "hold", "early")
+#: Methods whose cost the option extends (grid searches; the refinement of ``psbmpc_refine`` would not see it).
+OPTION_METHODS = ("psbmpc", "sbmpc", "psbmpc_2020", "informed_sbmpc")
+
+
+@dataclass(frozen=True)
+class ColregsOptionSpec:
+    """``mpc.colregs_option``.  Distances are multiples of the pair's safety radius R_i = d_safe + (l_0 + l_i)/2
+    (the collision term's radius), so one set of values fits ships of every size.
+
+    Attributes:
+        enabled: add the option's terms (default false: the published cost).
+        stand_on, apparent, hold, early: which of the terms to add (each default true when enabled).
+        engage_radii: a target is engaged while its range is below this many R_i (default 40).
+        act_cpa_radii: a nominal CPA (own-ship keeping its present course and speed, the target its velocity)
+            below this many R_i is a risk of collision (default 2).
+        act_range_radii: below this range (in R_i) the stand-on vessel may act, if the CPA is a risk (Rule
+            17(a)(ii)/(b)); above it the give-way vessel can still act, so it keeps course and speed (default 4).
+        clear_radii: a target is past and clear when its range opens and exceeds this many R_i (default 4).
+        chi_apparent_deg: course alterations below this are not readily apparent (Rule 8(b); default 30).
+        du_apparent: speed-factor changes below this are not readily apparent (default 0.5).
+        K_stand_on, K_port, K_apparent, K_hold, K_early: the terms' weights (>= 0).
+    """
+
+    enabled: bool = False
+    stand_on: bool = True
+    apparent: bool = True
+    hold: bool = True
+    early: bool = True
+    engage_radii: float = 40.0
+    act_cpa_radii: float = 2.0
+    act_range_radii: float = 4.0
+    clear_radii: float = 4.0
+    chi_apparent_deg: float = 30.0
+    du_apparent: float = 0.5
+    K_stand_on: float = 10000.0
+    K_port: float = 10000.0
+    K_apparent: float = 100.0
+    K_hold: float = 100.0
+    K_early: float = 100.0
+
+    @property
+    def chi_apparent(self) -> float:
+        """:attr:`chi_apparent_deg` in radians."""
+        return math.radians(self.chi_apparent_deg)
+
+    def active(self) -> tuple[str, ...]:
+        """The keys of the terms to add (empty when not enabled)."""
+        return tuple(k for k in TERM_KEYS if self.enabled and getattr(self, k))
+
+
+#: Numeric keys -> (lower bound, whether the bound is open, upper bound or None).
+_NUMBERS = {"engage_radii": (0.0, True, 1e4), "act_cpa_radii": (0.0, True, 1e4), "act_range_radii": (0.0, True, 1e4),
+            "clear_radii": (0.0, True, 1e4), "chi_apparent_deg": (0.0, True, 90.0), "du_apparent": (0.0, True, 1.0),
+            "K_stand_on": (0.0, False, None), "K_port": (0.0, False, None), "K_apparent": (0.0, False, None),
+            "K_hold": (0.0, False, None), "K_early": (0.0, False, None)}
+_KEYS = ("enabled",) + TERM_KEYS + tuple(_NUMBERS)
+
+
+def parse_colregs_option(d, method: str | None = None) -> ColregsOptionSpec:
+    """``mpc.colregs_option`` -> :class:`ColregsOptionSpec`; ValueError naming the field and what is allowed.
+    ``method``: the own-ship's ``mpc.method``; an enabled option needs one of :data:`OPTION_METHODS`."""
+    w = "mpc.colregs_option"
+    d = as_mapping(d, w)
+    check_keys(d, _KEYS, w)
+    kw = {}
+    for k in ("enabled",) + TERM_KEYS:
+        if k in d:
+            kw[k] = as_bool(d[k], f"{w}.{k}")
+    for k, (lo, open_, hi) in _NUMBERS.items():
+        if k in d:
+            kw[k] = as_number(d[k], f"{w}.{k}", **({"gt": lo} if open_ else {"ge": lo}), le=hi)
+    spec = ColregsOptionSpec(**kw)
+    if spec.enabled and not spec.active():
+        raise ValueError(f"{w}: enabled with every term off ({', '.join(TERM_KEYS)} all false); switch a term on "
+                         f"or set enabled: false")
+    if spec.enabled and method is not None and method not in OPTION_METHODS:
+        raise ValueError(f"{w}.enabled: the option extends the grid-search methods {', '.join(OPTION_METHODS)}; "
+                         f"mpc.method is {method!r} (its cost would not see the option)")
+    if spec.enabled and spec.act_range_radii >= spec.engage_radii:
+        raise ValueError(f"{w}.act_range_radii ({spec.act_range_radii:g}) must be below engage_radii "
+                         f"({spec.engage_radii:g})")
+    return spec
+
+
+__all__ = ["ColregsOptionSpec", "TERM_KEYS", "OPTION_METHODS", "parse_colregs_option"]
