@@ -56,7 +56,7 @@ def situation(with_polygons: bool, pkg_name: str = "psbmpc_jax"):
 def slot(label: str, n_cbs: int, estimator: str, with_polygons: bool, pkg_name: str = "psbmpc_jax",
          version: str = "new"):
     pkg = importlib.import_module(pkg_name)
-    behaviours_for = importlib.import_module(f"{pkg_name}.bench").behaviours_for
+    behaviours_for = importlib.import_module(f"{pkg_name}.apps.bench_points").behaviours_for
     solve = importlib.import_module(f"{pkg_name}.solve").solve
 
     config = pkg.PlannerConfig(T=120.0, dt=0.5, estimator=estimator)
