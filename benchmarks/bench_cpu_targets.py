@@ -12,7 +12,9 @@ drawn once, as ``Planner`` does for one key).  Reported: each slot's median and 
 ``--baseline DIR`` adds the same slots for another copy of the package (a directory holding it renamed
 ``psbmpc_old``, as for ``bench_ab_points.py``), timed in the same rounds: a before/after in one interleaved run.
 
-Usage: python benchmarks/bench_cpu_targets.py [--repeats 20] [--tables 1014,7098] [--baseline DIR] [--out DIR]
+Usage: PYTHONPATH=. python benchmarks/bench_cpu_targets.py [--repeats 20] [--tables 1014,7098] [--baseline DIR]
+[--out DIR] (from the repository root: ``PYTHONPATH=.`` makes ``new`` this checkout's package, not an installed
+copy; the script's own directory comes first on ``sys.path``).
 """
 
 from __future__ import annotations
