@@ -12,7 +12,9 @@ drawn once, as ``Planner`` does for one key).  Reported: each slot's median and 
 ``--baseline DIR`` adds the same slots for another copy of the package (a directory holding it renamed
 ``psbmpc_old``, as for ``bench_ab_points.py``), timed in the same rounds: a before/after in one interleaved run.
 
-Usage: python benchmarks/bench_cpu_targets.py [--repeats 20] [--tables 1014,7098] [--baseline DIR] [--out DIR]
+Usage: PYTHONPATH=. python benchmarks/bench_cpu_targets.py [--repeats 20] [--tables 1014,7098] [--baseline DIR]
+[--out DIR] (from the repository root: ``PYTHONPATH=.`` makes ``new`` this checkout's package, not an installed
+copy; the script's own directory comes first on ``sys.path``).
 """
 
 from __future__ import annotations
@@ -56,7 +58,7 @@ def situation(with_polygons: bool, pkg_name: str = "psbmpc_jax"):
 def slot(label: str, n_cbs: int, estimator: str, with_polygons: bool, pkg_name: str = "psbmpc_jax",
          version: str = "new"):
     pkg = importlib.import_module(pkg_name)
-    behaviours_for = importlib.import_module(f"{pkg_name}.bench").behaviours_for
+    behaviours_for = importlib.import_module(f"{pkg_name}.apps.bench_points").behaviours_for
     solve = importlib.import_module(f"{pkg_name}.solve").solve
 
     config = pkg.PlannerConfig(T=120.0, dt=0.5, estimator=estimator)

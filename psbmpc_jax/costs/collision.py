@@ -173,7 +173,11 @@ def pc_ce(dx, dy, sxx, sxy, syy, R, z, rho, alpha, chi2):
 
 def _ce_samples(dx, dy, sxx, sxy, syy, R, z, rho, alpha, chi2):
     """P̂ (clipped at 1), the unclipped mean, each final sample's weight (0 outside the disc) and its offset
-    ``(qx, qy)`` from the obstacle mean."""
+    ``(qx, qy)`` from the obstacle mean.
+
+    Every sample is ``x = m + L z`` (L the proposal's Cholesky factor), so the proposal's Mahalanobis distance of
+    a sample is ``|z|^2`` and the elite moments of a refit are those of the table's ``z`` mapped through ``L``
+    (:func:`_ce_refit`): per sample only the elite / inside tests and the importance weight are computed."""
     n_iter = z.shape[0] - 1
     R = jnp.broadcast_to(R, dx.shape)
     ixx, ixy, iyy, logdet = _inv_logdet2(sxx, sxy, syy)
@@ -183,18 +187,24 @@ def _ce_samples(dx, dy, sxx, sxy, syy, R, z, rho, alpha, chi2):
         prop = _ce_refit(z[it], dx, dy, R, (ixx, ixy, iyy), prop, rho, alpha, chi2)
     mx, my, cxx, cxy, cyy, _ = prop
     l00, l10, l11 = _cholesky2(cxx, cxy, cyy)
-    px = mx[..., None] + l00[..., None] * z[n_iter, :, 0]
-    py = my[..., None] + l10[..., None] * z[n_iter, :, 0] + l11[..., None] * z[n_iter, :, 1]
-    qx, qy = px - dx[..., None], py - dy[..., None]
+    px, py, qx, qy = _ce_draw(z[n_iter], mx, my, l00, l10, l11, dx, dy)
     maha_o = ixx[..., None] * qx * qx + 2 * ixy[..., None] * qx * qy + iyy[..., None] * qy * qy
-    jxx, jxy, jyy, logdet_c = _inv_logdet2(cxx, cxy, cyy)
-    rx, ry = px - mx[..., None], py - my[..., None]
-    maha_c = jxx[..., None] * rx * rx + 2 * jxy[..., None] * rx * ry + jyy[..., None] * ry * ry
+    # the proposal's own Mahalanobis distance of x = m + L z is |z|^2; log det of L L^T is 2 log(l00 l11)
+    maha_c = z[n_iter, :, 0] * z[n_iter, :, 0] + z[n_iter, :, 1] * z[n_iter, :, 1]
+    logdet_c = 2.0 * jnp.log(l00 * l11)
     logw = -0.5 * (maha_o - maha_c) - 0.5 * (logdet - logdet_c)[..., None]
     inside = (px * px + py * py) <= (R * R)[..., None]
     w = jnp.where(inside, jnp.exp(jnp.where(inside, logw, 0.0)), 0.0)
     raw = jnp.mean(w, axis=-1)
     return jnp.minimum(1.0, raw), raw, w, qx, qy
+
+
+def _ce_draw(zi, mx, my, l00, l10, l11, dx, dy):
+    """The samples ``x = m + L z`` of the table ``zi [N_s, 2]`` (``[..., N_s]``) and their offsets from the
+    obstacle mean."""
+    px = mx[..., None] + l00[..., None] * zi[:, 0]
+    py = my[..., None] + l10[..., None] * zi[:, 0] + l11[..., None] * zi[:, 1]
+    return px, py, px - dx[..., None], py - dy[..., None]
 
 
 @pc_ce.defjvp
@@ -206,27 +216,36 @@ def _pc_ce_jvp(primals, tangents):
 
 def _ce_refit(zi, dx, dy, R, inv, prop, rho, alpha, chi2):
     """One Cross-Entropy iteration with the samples ``zi [N_s, 2]``: the proposal ``(mx, my, cxx, cxy, cyy,
-    done)`` refitted to its elite samples where the point is not done, converged or short of elites."""
+    done)`` refitted to its elite samples where the point is not done, converged or short of elites.
+
+    The elite samples' mean and covariance come from their moments in ``z`` (count, sums of z and of its
+    products: one product of the elite mask with a ``[N_s, 6]`` table, a matrix product) mapped through the
+    proposal's ``m + L z``: the same moments as summing the samples themselves, without a second pass over
+    them."""
     mx, my, cxx, cxy, cyy, done = prop
     ixx, ixy, iyy = inv
     n_s = zi.shape[0]
     l00, l10, l11 = _cholesky2(cxx, cxy, cyy)
-    px = mx[..., None] + l00[..., None] * zi[:, 0]
-    py = my[..., None] + l10[..., None] * zi[:, 0] + l11[..., None] * zi[:, 1]
-    qx, qy = px - dx[..., None], py - dy[..., None]
+    px, py, qx, qy = _ce_draw(zi, mx, my, l00, l10, l11, dx, dy)
     maha = ixx[..., None] * qx * qx + 2 * ixy[..., None] * qx * qy + iyy[..., None] * qy * qy
     elite = ((px * px + py * py) <= (R * R)[..., None]) & (maha <= chi2)
-    ef = elite.astype(dx.dtype)
-    n_e = jnp.sum(ef, axis=-1)
+    z0, z1 = zi[:, 0], zi[:, 1]
+    table = jnp.stack([jnp.ones_like(z0), z0, z1, z0 * z0, z0 * z1, z1 * z1], axis=-1)     # [N_s, 6]
+    mom = jnp.matmul(elite.astype(dx.dtype), table, precision=jax.lax.Precision.HIGHEST)
+    n_e = mom[..., 0]
     converged = n_e >= rho * n_s
     refit = (~done) & (~converged) & (n_e >= 3)
     n_safe = jnp.maximum(n_e, 1.0)
-    ex_ = jnp.sum(ef * px, axis=-1) / n_safe
-    ey_ = jnp.sum(ef * py, axis=-1) / n_safe
-    ax, ay = px - ex_[..., None], py - ey_[..., None]
-    sxx_e = jnp.sum(ef * ax * ax, axis=-1) / n_safe
-    sxy_e = jnp.sum(ef * ax * ay, axis=-1) / n_safe
-    syy_e = jnp.sum(ef * ay * ay, axis=-1) / n_safe
+    a0, a1 = mom[..., 1] / n_safe, mom[..., 2] / n_safe                     # elite mean of z
+    # elite covariance of z (the variances' rounding may not take them below 0)
+    c00 = jnp.maximum(mom[..., 3] / n_safe - a0 * a0, 0.0)
+    c01 = mom[..., 4] / n_safe - a0 * a1
+    c11 = jnp.maximum(mom[..., 5] / n_safe - a1 * a1, 0.0)
+    ex_ = mx + l00 * a0                                                      # ... mapped through m + L z
+    ey_ = my + l10 * a0 + l11 * a1
+    sxx_e = l00 * l00 * c00
+    sxy_e = l00 * (l10 * c00 + l11 * c01)
+    syy_e = l10 * l10 * c00 + 2.0 * l10 * l11 * c01 + l11 * l11 * c11
     mx = jnp.where(refit, alpha * ex_ + (1 - alpha) * mx, mx)
     my = jnp.where(refit, alpha * ey_ + (1 - alpha) * my, my)
     cxx = jnp.where(refit, alpha * sxx_e + (1 - alpha) * cxx, cxx)
