@@ -18,6 +18,7 @@ import yaml
 from ..evaltool import Tracks, evaluate_tracks
 from ..evaltool.params import EvalParams
 from ..scenario import Scenario, scenario_from_dict
+from ..safe_io import read_json_document
 from ..scenario.mpc import read_evaluation
 from .sampling import EncounterBatch, GeneratedEncounter
 
@@ -120,13 +121,15 @@ def write_scenarios(encounters, out_dir, *, overwrite: bool = False, validate: b
     stale = []
     if overwrite and manifest.is_file():
         try:
-            old = json.loads(manifest.read_text(encoding="utf-8"))
-            stale = [out / f["file"] for f in old.get("files", [])
-                     if isinstance(f, dict) and isinstance(f.get("file"), str) and "/" not in f["file"]
-                     and f["file"] not in names]
-        except (ValueError, OSError, AttributeError) as exc:
-            raise ValueError(f"{manifest}: not a readable manifest ({exc}); remove it or choose another "
-                             f"folder") from None
+            old = read_json_document(manifest, what="scenario-generation manifest")
+            if not isinstance(old, dict) or not isinstance(old.get("files", []), list):
+                raise ValueError(f"{manifest}: not a scenario-generation manifest (a JSON object with a list "
+                                 f"'files' expected)")
+        except ValueError as exc:
+            raise ValueError(f"{exc}; remove it or choose another folder") from None
+        stale = [out / f["file"] for f in old.get("files", [])
+                 if isinstance(f, dict) and isinstance(f.get("file"), str) and "/" not in f["file"]
+                 and f["file"] not in names]
     out.mkdir(parents=True, exist_ok=True)
     for e, p in zip(items, paths):
         _atomic_write(p, _yaml_text(e), overwrite)
