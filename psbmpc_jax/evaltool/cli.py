@@ -276,7 +276,9 @@ def run_evaluate(args, parser: argparse.ArgumentParser) -> int:
             problem = output_problem(args.out, args.paths, force=args.force)
         if problem:
             parser.error(problem)
-    docs, texts, figures = [], [], []
+    docs: list[dict] = []
+    texts: list[str] = []
+    figures: list[tuple] = []
     for path in args.paths:
         try:
             stored = stored_params(path)

@@ -78,7 +78,7 @@ class Term:
 
     Attributes:
         name: the key in :class:`EncounterScores` (``"P_delay"``, ``"S_r"`` ...).
-        value: its value (the same number as in the scores).
+        value: its value (the same number as in the scores; None where the score does not apply).
         k: the sample index (evaluation grid) of the event that set it -- the manoeuvre start for P_delay,
             the sample of the largest course deviation for P_na_delta_chi ... -- or None when nothing fired.
         why: the condition that decided it, in words with the numbers used.
@@ -86,7 +86,7 @@ class Term:
     """
 
     name: str
-    value: float
+    value: float | None
     k: int | None
     why: str
     data: dict = field(default_factory=dict)

@@ -160,14 +160,14 @@ def _ships(scenario) -> tuple[list[str], np.ndarray, np.ndarray, np.ndarray, flo
                 float(scenario.duration))
     if not isinstance(scenario, dict) or "own_ship" not in scenario:
         raise ValueError("scenario must be a psbmpc_jax.scenario.Scenario or a scenario mapping with own_ship")
-    ships = [scenario["own_ship"]] + list(scenario.get("targets") or [])
-    for i, s in enumerate(ships):
+    mapped = [scenario["own_ship"]] + list(scenario.get("targets") or [])
+    for i, s in enumerate(mapped):
         missing = [k for k in ("name", "position_m", "course_deg", "speed_mps") if k not in s]
         if missing:
             raise ValueError(f"ship {i} of the mapping lacks {missing} (straight_line_tracks reads position_m, "
                              f"course_deg and speed_mps; load other files with psbmpc_jax.scenario.load_scenario)")
-    return ([s["name"] for s in ships], np.array([s["position_m"] for s in ships], float),
-            np.radians([float(s["course_deg"]) for s in ships]), np.array([float(s["speed_mps"]) for s in ships]),
+    return ([s["name"] for s in mapped], np.array([s["position_m"] for s in mapped], float),
+            np.radians([float(s["course_deg"]) for s in mapped]), np.array([float(s["speed_mps"]) for s in mapped]),
             float(scenario["simulation"]["duration_s"]))
 
 

@@ -340,6 +340,7 @@ def write_index(out_dir) -> pathlib.Path:
     for path in sorted(out.glob("*/metrics.json")):
         try:
             manifest = verify_member(path, require_manifest=True)
+            assert manifest is not None          # require_manifest: a member of a run folder or an error
             doc = read_json_document(path, what="metrics file", schema=SCHEMA, error=RunFolderError)
         except RunFolderError as exc:
             skipped.append(f"- `{path.parent.name}/`: {exc}")
