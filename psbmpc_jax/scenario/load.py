@@ -220,7 +220,7 @@ def _check_method_fit(mpc, own, targets) -> None:
         if t.colav != "none":
             runs.setdefault(t.colav, []).append(t)
     for name, ships in runs.items():
-        get_method(name).check_fit(ships, mpc.given)
+        get_method(name).check_fit(ships, mpc.given, mpc)
 
 
 def _check_solve_memory(mpc, n_targets: int, land: bool) -> None:
