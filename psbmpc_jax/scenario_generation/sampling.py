@@ -172,8 +172,11 @@ def prepare(types, settings="harbour", chart=None, base_dir=None) -> GenerationC
         raise ValueError(f"chart must be None, a chart section (mapping) or a psbmpc_jax.charts.Chart, got "
                          f"{type(chart).__name__}")
     duration = s.duration_s(types)
+    # a stand-in own-ship of the size and speed the files will have (the method's settings are checked against it)
     probe = dict(template, name="probe", simulation={"dt_s": s.dt_s, "duration_s": duration},
-                 own_ship={"name": "OS", "position_m": [0.0, 0.0], "course_deg": 0.0, "speed_mps": 1.0})
+                 own_ship={"name": "OS", "position_m": [0.0, 0.0], "course_deg": 0.0,
+                           "speed_mps": 0.5 * (s.own_speed_mps[0] + s.own_speed_mps[1]),
+                           "length_m": s.ship_length_m, "width_m": s.ship_width_m})
     if "chart" in probe:
         probe["chart"] = {k: v for k, v in dict(probe["chart"]).items() if k != "clip_m"}   # all the land
     try:
