@@ -8,11 +8,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, fields
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .maneuvers import Maneuver
 from .params import EvalParams
+
+if TYPE_CHECKING:
+    from .tracks import Tracks
 
 __all__ = ["EncounterScores", "Term", "Encounter", "Evaluation", "SCORE_NAMES", "STATUSES"]
 
@@ -190,7 +194,7 @@ class Evaluation:
     encounters: tuple
     maneuvers: dict
     source: str | None = None
-    resampled: object | None = None
+    resampled: Tracks | None = None
 
     def of(self, vessel: str | None = None, other: str | None = None) -> list[Encounter]:
         """The encounters of ``vessel`` (default: the own-ship) with ``other`` (default: any)."""

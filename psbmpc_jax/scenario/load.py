@@ -5,6 +5,8 @@ from __future__ import annotations
 import copy
 import os
 import pathlib
+from typing import Any
+
 import numpy as np
 import shapely
 import shapely.validation
@@ -105,7 +107,7 @@ def scenario_from_dict(data: dict, base_dir=None, source: str | None = None, *, 
     evaluation = read_evaluation(data.get("evaluation", {}) or {})
 
     chart = inline = None
-    info = dict(source=None, origin=None, crs=None)
+    info: dict[str, Any] = dict(source=None, origin=None, crs=None)
     rdp_eps = clip = None
     if "chart" in data:
         chart, inline, info, rdp_eps, clip = chart_source(data["chart"], base_dir, origin_ll)
