@@ -49,8 +49,8 @@ def enable_compilation_cache(path=None, *, min_compile_time_s: float = 0.5) -> p
 
     if path is not None:
         folder = pathlib.Path(path).expanduser()
-    elif not os.environ.get(DEFAULT_CACHE_ENV) and jax.config.jax_compilation_cache_dir:
-        configured = str(jax.config.jax_compilation_cache_dir)
+    elif not os.environ.get(DEFAULT_CACHE_ENV) and jax.config.jax_compilation_cache_dir:  # type: ignore[attr-defined]  # jax's Config stub lacks its flags
+        configured = str(jax.config.jax_compilation_cache_dir)  # type: ignore[attr-defined]  # jax's Config stub lacks its flags
         if "://" in configured:   # a remote cache (gs://...) configured by the user: leave it as it is
             jax.config.update("jax_persistent_cache_min_compile_time_secs", float(min_compile_time_s))
             return None
@@ -64,7 +64,7 @@ def enable_compilation_cache(path=None, *, min_compile_time_s: float = 0.5) -> p
     except OSError:  # read-only home, a file in the way: run without the cache
         return None
     folder = folder.resolve()
-    if jax.config.jax_compilation_cache_dir != str(folder):
+    if jax.config.jax_compilation_cache_dir != str(folder):  # type: ignore[attr-defined]  # jax's Config stub lacks its flags
         jax.config.update("jax_compilation_cache_dir", str(folder))
         try:  # a cache JAX already opened keeps its folder until reset
             from jax.experimental.compilation_cache import compilation_cache

@@ -63,7 +63,7 @@ def real(value, name: str) -> float:
     try:
         x = float(value)
     except OverflowError:
-        raise ValueError(f"{name} is too large to be a float, got an integer with {len(str(int(value)))} "
+        raise ValueError(f"{name} is too large to be a float, got an integer with {len(str(math.trunc(value)))} "
                          f"digits") from None
     if not math.isfinite(x):
         raise ValueError(f"{name} must be finite (no NaN/inf), got {x}")

@@ -88,15 +88,16 @@ def context(inputs: SolveInputs, last_offsets, params: Params, config: PlannerCo
     plat = getattr(config, "layout_platform", "auto")
     unroll = resolve_unroll(getattr(config, "rollout_unroll", 1), plat)
     kernel = resolve_rollout_kernel(getattr(config, "rollout_kernel", "scan"), plat)
-    roll = dict(unroll=unroll, kernel=kernel)
-    own = ownship_rollouts(own_in.state, own_path, own_in.U_d, offsets, params, n_steps, dt, **roll)
+    own = ownship_rollouts(own_in.state, own_path, own_in.U_d, offsets, params, n_steps, dt, unroll=unroll,
+                           kernel=kernel)
     own_applied = None
     if applied:
         held = jnp.broadcast_to(jnp.asarray(last_offsets, dtype), (1, offsets.shape[1], 2))
-        own_applied = ownship_rollouts(own_in.state, own_path, own_in.U_d, held, params, n_steps, dt, **roll)
+        own_applied = ownship_rollouts(own_in.state, own_path, own_in.U_d, held, params, n_steps, dt, unroll=unroll,
+                                       kernel=kernel)
     n_o, n_s = obs_in.probs.shape
     obs = obstacle_scenarios(obs_in.state, obs_in.wx, obs_in.wy, obs_in.n, obs_in.n_ps, n_s, params, n_steps, dt,
-                             leg_u=obs_in.leg_u, **roll)
+                             leg_u=obs_in.leg_u, unroll=unroll, kernel=kernel)
     cov = obstacle_covariances(obs_in.cov, params, n_steps, dt)
     scen_valid = obs_in.mask[:, None] & (jnp.arange(n_s)[None, :] < obs_in.n_ps[:, None])
     return Context(

@@ -215,13 +215,13 @@ def _bits_before(words):
 class _Live(NamedTuple):
     """One polygon's culling result per tile ``[N]``: live-edge bit words ``words [KC M / 32, N]`` (bit
     q M + k: lane k of candidate chunk ``ids[q]``), ``before`` (set bits in earlier words), ``ids [KC, N]``,
-    ``count`` (live edges), ``par`` (crossings of the ray from the box's corner (xmax, ymax) by every non-live
+    ``n_live`` (live edges), ``par`` (crossings of the ray from the box's corner (xmax, ymax) by every non-live
     edge), ``idle`` (score 0 at every point: not evaluated) and whether ``KC`` overflowed."""
 
     words: jax.Array
     before: jax.Array
     ids: jax.Array
-    count: jax.Array
+    n_live: jax.Array
     par: jax.Array
     idle: jax.Array
     overflow: jax.Array
@@ -331,7 +331,7 @@ def _nearest(tiles: TimeTiles, ch: EdgeChunks, live: _Live, M, track):
 
     init = (jnp.full(x.shape, jnp.finfo(x.dtype).max, x.dtype), jnp.zeros_like(x), jnp.zeros_like(x),
             jnp.broadcast_to(live.par[:, None], x.shape))
-    d2, vx, vy, inside = lax.fori_loop(0, jnp.max(live.count), body, init)
+    d2, vx, vy, inside = lax.fori_loop(0, jnp.max(live.n_live), body, init)
     return jnp.where(inside, 0.0, jnp.sqrt(d2)), jnp.where(inside, 0.0, -vx), jnp.where(inside, 0.0, -vy)
 
 

@@ -49,10 +49,10 @@ class CanonicalJit:
         return self._jit.trace(*pos, **kw)
 
     def _cache_size(self) -> int:
-        return self._jit._cache_size()
+        return self._jit._cache_size()  # type: ignore[attr-defined]  # the stub of jax.jit's result lacks these methods
 
     def clear_cache(self) -> None:
-        self._jit.clear_cache()
+        self._jit.clear_cache()  # type: ignore[attr-defined]  # the stub of jax.jit's result lacks these methods
 
 
 class _Lowered:

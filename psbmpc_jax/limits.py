@@ -252,7 +252,7 @@ def check_solve(config, n_behaviours: int, n_obstacle_scenarios: int, land: bool
     parts = solve_parts(config, n_behaviours, n_obstacle_scenarios, land, n_mc)
     est = solves * sum(parts.values()) + RUNTIME_OVERHEAD
     names = {**SOLVE_SETTINGS, **(settings or {})}
-    top = max(parts, key=parts.get)
+    top = max(parts, key=lambda name: parts[name])
     what = (f"{'one solve' if solves == 1 else f'{solves} solves at once'} ({config.n_steps} steps x "
             f"{n_behaviours} behaviours x {n_obstacle_scenarios} obstacle scenarios, estimator {config.estimator}"
             + (f" with n_samples = {config.n_samples}" if config.estimator != "quadrature" else "")

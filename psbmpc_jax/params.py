@@ -187,14 +187,19 @@ def _register_pytrees() -> None:
     """Register the collected dataclasses as pytrees (idempotent; needs jax imported)."""
     import jax
 
-    while _PYTREES:
-        cls = _PYTREES.pop()
+    def register(cls) -> None:
         names = tuple(f.name for f in fields(cls))
-        jax.tree_util.register_pytree_node(
-            cls,
-            lambda obj, names=names: (tuple(getattr(obj, n) for n in names), None),
-            lambda _, leaves, cls=cls, names=names: cls(**dict(zip(names, leaves))),
-        )
+
+        def flatten(obj):
+            return tuple(getattr(obj, n) for n in names), None
+
+        def unflatten(_, leaves):
+            return cls(**dict(zip(names, leaves)))
+
+        jax.tree_util.register_pytree_node(cls, flatten, unflatten)
+
+    while _PYTREES:
+        register(_PYTREES.pop())
 
 
 class _AfterJaxImport(importlib.abc.MetaPathFinder):

@@ -14,12 +14,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from .behaviours import PAPER_COURSES_DEG, PAPER_SPEEDS, SAKSHAUG_COURSES_DEG, enumerate_behaviours_deg
+from .design_ship import DesignShip
 from .params import Params, PlannerConfig, validate_params
 
 
 @dataclass(frozen=True)
 class MPCPreset:
-    """One tuning: static config, parameter values, per-maneuver speed-factor and course-offset sets [deg]."""
+    """One tuning: static config, parameter values, per-maneuver speed-factor and course-offset sets [deg], and
+    the ship it was made for (``design_ship``, where its source names a ship length or speed; the methods whose
+    tuning is the preset refuse ships outside it, :meth:`psbmpc_jax.methods.Method.check_fit`)."""
 
     name: str
     description: str
@@ -28,6 +31,7 @@ class MPCPreset:
     speed_sets: tuple[tuple[float, ...], ...]
     course_sets_deg: tuple[tuple[float, ...], ...]
     n_ps: int = 5
+    design_ship: DesignShip | None = None
 
     def behaviours(self) -> np.ndarray:
         return enumerate_behaviours_deg(self.speed_sets, self.course_sets_deg)
@@ -42,6 +46,7 @@ PRESETS: dict[str, MPCPreset] = {
         params=Params(),
         speed_sets=PAPER_SPEEDS,
         course_sets_deg=(PAPER_COURSES_DEG, PAPER_COURSES_DEG),
+        design_ship=DesignShip(5.0, None, "preset nidelva: Tengesdal et al. 2022, Table 1 (river, 5 m vessels)"),
     ),
     "sakshaug": MPCPreset(
         name="sakshaug",
@@ -51,6 +56,8 @@ PRESETS: dict[str, MPCPreset] = {
         params=Params(r_ct=20.0, d_safe=10.0, d_close=300.0),
         speed_sets=PAPER_SPEEDS,
         course_sets_deg=(SAKSHAUG_COURSES_DEG, SAKSHAUG_COURSES_DEG),
+        design_ship=DesignShip(10.0, None, "preset sakshaug: Tengesdal et al. 2022, Table 3 (narrow strait, 10 m "
+                                           "vessels)"),
     ),
     "open_sea": MPCPreset(
         name="open_sea",
@@ -65,6 +72,7 @@ PRESETS: dict[str, MPCPreset] = {
                       os_R_a=50.0, ob_R_a=50.0, os_T_chi=5.0, os_T_U=10.0, ob_T_chi=5.0, ob_T_U=10.0),
         speed_sets=PAPER_SPEEDS,
         course_sets_deg=(SAKSHAUG_COURSES_DEG, SAKSHAUG_COURSES_DEG),
+        design_ship=DesignShip(None, 10.0, "preset open_sea: our open-sea tuning for the Imazu cases (10 m/s ships)"),
     ),
     "tengesdal2020": MPCPreset(
         name="tengesdal2020",
@@ -77,6 +85,8 @@ PRESETS: dict[str, MPCPreset] = {
         speed_sets=((1.0, 0.5, 0.0),),
         course_sets_deg=(SAKSHAUG_COURSES_DEG,),
         n_ps=1,
+        design_ship=DesignShip(30.0, 9.0, "preset tengesdal2020: Tengesdal, Brekke & Johansen 2020 (30 m vessels at "
+                                          "9 m/s)"),
     ),
     "akdag2022": MPCPreset(
         name="akdag2022",
@@ -89,6 +99,8 @@ PRESETS: dict[str, MPCPreset] = {
         speed_sets=((1.0, 0.5, 0.0),),
         course_sets_deg=(SAKSHAUG_COURSES_DEG,),
         n_ps=1,
+        design_ship=DesignShip(116.0, 6.0, "preset akdag2022: Akdağ, Fossen & Johansen 2022 (116 m PSVs at about "
+                                           "6 m/s)"),
     ),
 }
 

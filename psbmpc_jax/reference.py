@@ -115,6 +115,7 @@ def _check_samples(samples, estimator: str, config: PlannerConfig):
     _check_estimator(estimator)
     if estimator == "quadrature":
         return None
+    shape: tuple[int, ...]
     if estimator == "mc":
         shape = (config.n_samples, 2)
         what = "(config.n_samples, 2)"
@@ -575,6 +576,7 @@ def evaluate_reference(situation: Situation, behaviours, params: Params = Params
         for i, ob in enumerate(obstacles):
             sum_c = 0.0
             sum_mu = 0.0
+            assert ob.probs is not None          # Obstacle.__post_init__ sets the uniform default
             for s in range(ob.n_ps):
                 c_s = collision_cost(traj, obs_traj[i][s], S_pos[i], radii[i], ob.zeta, params, config, Z)
                 mu_s = 1.0 if bool(np.any(colregs_violation(traj, obs_traj[i][s], params, remedy))) else 0.0

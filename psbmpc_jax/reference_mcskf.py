@@ -14,6 +14,7 @@ U [m/s]); obstacle covariances 4×4 in the order [x, y, V_x, V_y].
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -219,7 +220,7 @@ def psbmpc2020_cost(own_traj, obstacles, t, Z, *, kappa: float = 10.0, include_t
     Returns ``{"value": max_i h_i (0 without obstacles), "h": [h_i], "bracket": [[h_is]], "coll": [[…]],
     "colregs": [[…]]}``."""
     k0 = 0 if include_t0 else 1
-    out = {"h": [], "bracket": [], "coll": [], "colregs": []}
+    out: dict[str, Any] = {"h": [], "bracket": [], "coll": [], "colregs": []}
     for trajs, probs, Sigma in obstacles:
         probs = np.asarray(probs, float)
         tot = float(np.sum(probs))

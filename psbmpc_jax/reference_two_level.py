@@ -39,7 +39,7 @@ def _ray_segment_t_exact(o, dx: float, dy: float, a, b) -> float:
         if wx * fdy - wy * fdx != 0:
             return math.inf
         ta, tb = wx * fdx + wy * fdy, (wx + ex) * fdx + (wy + ey) * fdy
-        return float(max(min(ta, tb), 0)) if max(ta, tb) >= 0 else math.inf
+        return float(max(min(ta, tb), Fraction(0))) if max(ta, tb) >= 0 else math.inf
     t = (wx * ey - wy * ex) / den
     s = (wx * fdy - wy * fdx) / den
     return float(t) if (t >= 0 and 0 <= s <= 1) else math.inf

@@ -41,7 +41,7 @@ import re
 import shutil
 import uuid
 
-from .safe_io import TEMP_SUFFIX, OutputError, atomic_write_text
+from .safe_io import TEMP_SUFFIX, OutputError, atomic_write_text, read_json_document
 
 __all__ = ["MANIFEST", "MANIFEST_SCHEMA", "STAGING_PREFIX", "OUTPUT_PATTERNS", "RunFolderError", "new_run_id",
            "sha256_file", "read_manifest", "run_folder_problem", "require_complete", "verify_member", "RunWriter"]
@@ -96,20 +96,12 @@ def read_manifest(folder, *, foreign: str = "raise") -> dict | None:
             (``foreign="raise"``) one of another tool.
     """
     path = pathlib.Path(folder) / MANIFEST
-    if not path.is_file():
+    doc = read_json_document(path, what="run manifest", schema=MANIFEST_SCHEMA, error=RunFolderError,
+                             missing_ok=True, foreign_prefix="psbmpc-run/" if foreign == "ignore" else None)
+    if doc is None:
+        if path.is_file():
+            log.debug("%s: not a psbmpc-jax run manifest; ignored", path)
         return None
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise RunFolderError(f"{path}: cannot be read as a run manifest ({exc})") from None
-    schema = doc.get("schema") if isinstance(doc, dict) else None
-    if schema != MANIFEST_SCHEMA:
-        ours = isinstance(schema, str) and schema.startswith("psbmpc-run/")
-        if foreign == "ignore" and not ours:
-            log.debug("%s: not a psbmpc-jax run manifest (schema %r); ignored", path, schema)
-            return None
-        raise RunFolderError(f"{path}: not a psbmpc-jax run manifest of this version (schema {schema!r}, "
-                             f"expected {MANIFEST_SCHEMA!r})")
     if not isinstance(doc.get("files"), dict) or not isinstance(doc.get("run_id"), str):
         raise RunFolderError(f"{path}: a run manifest without run_id or files")
     return doc

@@ -8,17 +8,21 @@ over an input, and with errors that name the path and what is wrong.
   file system).
 * :func:`file_output_problem`: why a file cannot be written at a path (a folder there, a file where a folder
   is needed, no permission), as a message; :class:`OutputError` carries such a message.
+* :func:`read_json_document`: the one reader of the JSON files the package writes and reads back (manifests,
+  campaign files, metrics): errors name the file and what was expected, raised as the caller's error class.
 """
 
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 import pathlib
 import tempfile
 
 __all__ = ["OutputError", "atomic_open", "atomic_write_text", "atomic_write_bytes", "same_file",
-           "file_output_problem", "check_output_file", "TEMP_SUFFIX"]
+           "file_output_problem", "check_output_file", "TEMP_SUFFIX", "read_json_document",
+           "json_schema"]
 
 #: Suffix of the temporary files of :func:`atomic_open` (hidden: they start with a dot).
 TEMP_SUFFIX = ".tmp"
@@ -62,8 +66,8 @@ def atomic_open(path, mode: str = "w", *, encoding: str | None = "utf-8", newlin
     except OSError as exc:
         raise OutputError(f"cannot write {path}: {exc.strerror or exc}") from None
     try:
-        kwargs = {} if "b" in mode else {"encoding": encoding, "newline": newline}
-        with os.fdopen(fd, mode, **kwargs) as fh:
+        opened = os.fdopen(fd, "wb") if "b" in mode else os.fdopen(fd, "w", encoding=encoding, newline=newline)
+        with opened as fh:
             yield fh
             fh.flush()
             os.fsync(fh.fileno())
@@ -134,3 +138,46 @@ def check_output_file(path, *, overwrite: bool = True, what: str = "output file"
     if not overwrite and p.exists():
         raise OutputError(f"{what} {p} exists already; remove it, choose another name or pass overwrite=True")
     return p
+
+
+def json_schema(doc) -> str | None:
+    """The ``"schema"`` member of a JSON document when it is an object with a string there, else None."""
+    schema = doc.get("schema") if isinstance(doc, dict) else None
+    return schema if isinstance(schema, str) else None
+
+
+def read_json_document(path, *, what: str, schema: str | None = None, error: type[Exception] = ValueError,
+                       missing_ok: bool = False, foreign_prefix: str | None = None, note: str = ""):
+    """The JSON document at ``path``, its ``"schema"`` checked.
+
+    Args:
+        path: the file.
+        what: what the file should be, a noun taking "a", for messages (``"run manifest"``).
+        schema: the expected ``"schema"`` member; None: any JSON value is returned unchecked.
+        error: the exception class raised (called with the message alone).
+        missing_ok: no file at ``path`` gives None instead of an error.
+        foreign_prefix: with ``schema``: a document whose schema does not start with this prefix (another
+            tool's file, or no JSON object at all) gives None; one that does but differs from ``schema`` (another
+            version) still raises.
+        note: appended to the wrong-schema message (``"; it is not overwritten"``).
+
+    Raises:
+        error: ``"<path>: cannot be read as a <what> (<reason>)"`` (no such file, unreadable, not UTF-8, not
+            JSON) or ``"<path>: not a psbmpc-jax <what> of this version (schema <found>, expected
+            <schema>)<note>"``.
+    """
+    path = pathlib.Path(path)
+    if missing_ok and not path.is_file():
+        return None
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise error(f"{path}: cannot be read as a {what} ({exc})") from None
+    if schema is None:
+        return doc
+    found = doc.get("schema") if isinstance(doc, dict) else None
+    if found != schema:
+        if foreign_prefix is not None and not (isinstance(found, str) and found.startswith(foreign_prefix)):
+            return None
+        raise error(f"{path}: not a psbmpc-jax {what} of this version (schema {found!r}, expected {schema!r}){note}")
+    return doc

@@ -89,12 +89,14 @@ def _polygon(value, name: str):
     if value is None:
         raise ValueError(f"{name} must be a ring [n >= 3, 2] (north, east) or a tuple (outer ring, holes...), "
                          f"got None")
+    out: np.ndarray | tuple[np.ndarray, ...]
     if isinstance(value, (list, tuple)) and len(value) > 0 and np.ndim(value[0]) == 2:
-        out = tuple(_ring(r, f"{name}[{k}]") for k, r in enumerate(value))
-        rings = out
+        rings = tuple(_ring(r, f"{name}[{k}]") for k, r in enumerate(value))
+        out = rings
     else:
-        out = _ring(value, name)
-        rings = (out,)
+        ring = _ring(value, name)
+        rings = (ring,)
+        out = ring
     why = _validity(rings)
     if why is not None:
         what = "outer ring + holes" if len(rings) > 1 else "ring"

@@ -52,7 +52,8 @@ def random_targets(n: int, *, seed: int, north_range_m=(0.0, 1000.0), east_range
             raise ValueError(f"{name} must be a finite number >= 0, got {v!r}")
     clear = np.asarray(keep_clear, float).reshape(-1, 2) if len(keep_clear) else np.zeros((0, 2))
     rng = np.random.default_rng(int(seed))
-    placed, out = [], []
+    placed: list[np.ndarray] = []
+    out = []
     for i in range(int(n)):
         for _ in range(MAX_TRIES):
             pos = np.round([rng.uniform(*north), rng.uniform(*east)], decimals)

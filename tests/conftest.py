@@ -7,6 +7,9 @@ from __future__ import annotations
 import gc
 import math
 import os
+import subprocess
+import sys
+from pathlib import Path
 
 #: The tests compile with LLVM's optimisation off (``--xla_backend_optimization_level=0``): XLA's own HLO passes
 #: still run, so every test checks the same program a user compiles, and only the machine code is less optimised.
@@ -95,6 +98,35 @@ def pytest_configure(config):
         jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
     except Exception:  # pragma: no cover - cache is an optimisation only
         pass
+
+
+# ------------------------------------------------------------------------------------------ 4 host devices
+#: The repository root (the subprocess below runs there, with it and tests/ on PYTHONPATH).
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def run_on_four_host_devices(request, script: str, args=(), *, timeout: float = 300) -> subprocess.CompletedProcess:
+    """``python -c script *args`` in a process with 4 forced XLA host devices
+    (``--xla_force_host_platform_device_count=4``), 64-bit JAX on the CPU, at XLA's default optimisation level
+    (as users compile: :data:`O0_FLAG`, the suite's default, is removed), in :data:`ROOT` with the package and
+    tests/ importable.  A persistent compilation cache folder (pytest's cache, unless ``-p no:cacheprovider`` or
+    ``PSBMPC_TEST_NO_JAX_CACHE``) is appended as the last argument.  Fails the test when the process does not
+    exit with 0, showing the ends of its stdout and stderr; returns the finished process."""
+    env = dict(os.environ)
+    flags = env.get("XLA_FLAGS", "").replace(O0_FLAG, "")
+    env["XLA_FLAGS"] = (flags + " --xla_force_host_platform_device_count=4").strip()
+    env["PSBMPC_TEST_XLA_O0"] = "0"
+    env["JAX_ENABLE_X64"] = "1"
+    env["JAX_PLATFORMS"] = "cpu"
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (str(ROOT), str(ROOT / "tests"), env.get("PYTHONPATH")) if p)
+    args = [str(a) for a in args]
+    cache = getattr(request.config, "cache", None)                         # None under -p no:cacheprovider
+    if cache is not None and not os.environ.get("PSBMPC_TEST_NO_JAX_CACHE"):
+        args.append(str(cache.mkdir("jax-compilation-cache-4dev")))
+    proc = subprocess.run([sys.executable, "-c", script, *args], env=env, capture_output=True, text=True,
+                          timeout=timeout, cwd=str(ROOT))
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-6000:]
+    return proc
 
 
 # ------------------------------------------------------------------------------------------ behaviours

@@ -7,6 +7,7 @@ import pytest
 import yaml
 
 from psbmpc_jax.methods import REGISTRY, DesignShip
+from psbmpc_jax.presets import PRESETS
 from psbmpc_jax.scenario import builtin_scenarios, load_scenario, scenario_from_dict
 from psbmpc_jax.scenario.schema import SCENARIO_DIR
 
@@ -24,7 +25,7 @@ def _load(name, method=None):
 def test_every_scenario_by_every_method_fits_or_is_refused_by_name(scenario):
     own = _load(scenario)                                 # the file's own method always fits
     for method in BUILTIN_METHODS:
-        design = REGISTRY[method].design_ship
+        design = REGISTRY[method].design_for(own.mpc)     # psbmpc, psbmpc_refine: the preset's design ship
         try:
             sc = _load(scenario, method=method)
         except ValueError as exc:
@@ -36,6 +37,7 @@ def test_every_scenario_by_every_method_fits_or_is_refused_by_name(scenario):
         # loaded: either the method's tuning is the scenario's (its section given, or no design ship) or the
         # ships that run it lie inside the design ship's range
         if design is not None and not any(k in sc.mpc.given for k in REGISTRY[method].tuning_sections):
+            assert REGISTRY[method].design_for(sc.mpc) == design
             assert design.misfit(sc.own_ship.length, sc.own_ship.U_d) is None, (scenario, method)
 
 
@@ -72,3 +74,57 @@ def test_a_target_running_a_method_is_checked_too():
         scenario_from_dict(data)
     data["mpc"]["sbmpc"] = {"preset": "river"}
     assert scenario_from_dict(data).targets[0].colav == "sbmpc"
+
+
+def test_a_source_that_names_only_a_length_or_only_a_speed():
+    by_length = DesignShip(5.0, None, "5 m vessels")
+    assert by_length.misfit(15.0, 40.0) is None and by_length.misfit(15.01, 1.0) == "length 15.01 m outside 1.67-15 m"
+    by_speed = DesignShip(None, 10.0, "10 m/s ships")
+    assert by_speed.misfit(400.0, 5.0) is None
+    assert by_speed.misfit(400.0, 3.0) == "cruise speed 3 m/s outside 3.33-30 m/s"
+
+
+def test_every_mpc_preset_names_its_design_ship():
+    for name, preset in PRESETS.items():
+        d = preset.design_ship
+        assert d is not None and d.source.startswith(f"preset {name}: "), name
+        assert d.length_m is not None or d.speed_mps is not None, name
+    assert (PRESETS["tengesdal2020"].design_ship.length_m, PRESETS["tengesdal2020"].design_ship.speed_mps) == (30, 9)
+    assert (PRESETS["akdag2022"].design_ship.length_m, PRESETS["akdag2022"].design_ship.speed_mps) == (116, 6)
+
+
+def _large_ships_on_the_nidelva_preset():
+    data = yaml.safe_load((SCENARIO_DIR / "head_on.yaml").read_text())
+    del data["mpc"]["params"]                            # the preset's tuning as it is
+    data["mpc"].pop("method", None)
+    data["own_ship"]["length_m"] = 100.0
+    return data
+
+
+@pytest.mark.parametrize("method", ["psbmpc", "psbmpc_refine"])
+def test_the_psbmpc_family_checks_the_ships_against_the_preset(method):
+    data = _large_ships_on_the_nidelva_preset()
+    with pytest.raises(ValueError, match=rf"method {method} on ship 'OS': its default settings \(mpc.params not in "
+                                         r"the file\) were tuned for preset nidelva: Tengesdal et al. 2022, Table 1 "
+                                         r"\(river, 5 m vessels\) .* length 100 m outside 1.67-15 m\. Give "
+                                         r"mpc.params"):
+        scenario_from_dict(data, method=method)
+    data["own_ship"]["length_m"] = 15.0                  # the factor 3 is inclusive; the preset names no speed
+    data["own_ship"]["speed_mps"] = 7.0
+    assert scenario_from_dict(data, method=method).mpc.method == method
+    data = _large_ships_on_the_nidelva_preset()
+    data["mpc"]["params"] = {"d_safe": 60.0}             # the file tunes the preset for its ship
+    assert scenario_from_dict(data, method=method).own_ship.length == 100.0
+    data = _large_ships_on_the_nidelva_preset()
+    data["mpc"]["preset"] = "tengesdal2020"               # or picks the preset made for its ship (30 m at 9 m/s)
+    data["own_ship"]["length_m"], data["own_ship"]["speed_mps"] = 60.0, 6.0
+    assert scenario_from_dict(data, method=method).mpc.preset == "tengesdal2020"
+
+
+def test_a_target_running_psbmpc_is_checked_against_the_preset():
+    data = yaml.safe_load((SCENARIO_DIR / "head_on.yaml").read_text())
+    del data["mpc"]["params"]
+    data["targets"][0]["colav"] = "psbmpc"
+    data["targets"][0]["length_m"] = 60.0
+    with pytest.raises(ValueError, match=r"method psbmpc on ship 'TS1': .* preset nidelva: .* length 60 m outside"):
+        scenario_from_dict(data)

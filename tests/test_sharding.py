@@ -7,9 +7,6 @@ multi-device comparisons run in a subprocess with ``--xla_force_host_platform_de
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
 import textwrap
 from pathlib import Path
 
@@ -22,9 +19,8 @@ from psbmpc_jax import Planner, PlannerConfig, solve
 from psbmpc_jax.packing import BehaviourArrays, pad_behaviours
 from psbmpc_jax.sharding import _sharded_fn, check_devices, solve_sharded
 
-from conftest import CAPS, O0_FLAG, SMALL_BEHAVIOURS, pad_arrays, random_situation
+from conftest import CAPS, ROOT, SMALL_BEHAVIOURS, pad_arrays, random_situation, run_on_four_host_devices
 
-ROOT = Path(__file__).resolve().parents[1]
 CFG = PlannerConfig(dtype="float64", T=30.0, dt=0.5, n_samples=128)
 PER_B = ("total", "do", "colregs", "so", "path", "C", "mu", "so_j")
 
@@ -186,20 +182,7 @@ SCRIPT = textwrap.dedent("""
 
 
 def test_four_host_devices(request):
-    env = dict(os.environ)
     # at XLA's default optimisation level, as users compile (LLVM's optimisation off, conftest's default for the
     # suite, is another program)
-    flags = env.get("XLA_FLAGS", "").replace(O0_FLAG, "")
-    env["XLA_FLAGS"] = (flags + " --xla_force_host_platform_device_count=4").strip()
-    env["PSBMPC_TEST_XLA_O0"] = "0"
-    env["JAX_ENABLE_X64"] = "1"
-    env["JAX_PLATFORMS"] = "cpu"
-    env["PYTHONPATH"] = os.pathsep.join(p for p in (str(ROOT), str(ROOT / "tests"), env.get("PYTHONPATH")) if p)
-    args = [str(ROOT / "tests" / "conftest.py"), str(Path(__file__).resolve())]
-    cache = getattr(request.config, "cache", None)                         # None under -p no:cacheprovider
-    if cache is not None and not os.environ.get("PSBMPC_TEST_NO_JAX_CACHE"):
-        args.append(str(cache.mkdir("jax-compilation-cache-4dev")))
-    proc = subprocess.run([sys.executable, "-c", SCRIPT, *args], env=env, capture_output=True, text=True,
-                          timeout=300, cwd=str(ROOT))
-    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-6000:]
+    proc = run_on_four_host_devices(request, SCRIPT, [ROOT / "tests" / "conftest.py", Path(__file__).resolve()])
     assert "SHARDING-OK 4" in proc.stdout

@@ -13,10 +13,7 @@ import argparse
 import dataclasses
 import json
 import os
-import subprocess
-import sys
 import textwrap
-from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -30,9 +27,8 @@ from psbmpc_jax.sharding import local_devices, pad_batch
 from psbmpc_jax.sim import simulate
 from psbmpc_jax.sim.simulator import check_devices_split, resolve_batch_mode
 
-from conftest import O0_FLAG
+from conftest import run_on_four_host_devices
 
-ROOT = Path(__file__).resolve().parents[1]
 
 
 # ------------------------------------------------------------------------------------------ in process
@@ -181,21 +177,8 @@ SCRIPT = textwrap.dedent("""
 def run_split_check(request, runs: int, splits: tuple):
     """The script above in a process with 4 host devices: ``runs`` runs of head-on on one device and on each of
     ``splits`` devices."""
-    env = dict(os.environ)
     # XLA's default optimisation level, as users compile (test_sharding.py does the same)
-    flags = env.get("XLA_FLAGS", "").replace(O0_FLAG, "")
-    env["XLA_FLAGS"] = (flags + " --xla_force_host_platform_device_count=4").strip()
-    env["PSBMPC_TEST_XLA_O0"] = "0"
-    env["JAX_ENABLE_X64"] = "1"
-    env["JAX_PLATFORMS"] = "cpu"
-    env["PYTHONPATH"] = os.pathsep.join(p for p in (str(ROOT), env.get("PYTHONPATH")) if p)
-    args = [json.dumps([runs, list(splits)])]
-    cache = getattr(request.config, "cache", None)                         # None under -p no:cacheprovider
-    if cache is not None and not os.environ.get("PSBMPC_TEST_NO_JAX_CACHE"):
-        args.append(str(cache.mkdir("jax-compilation-cache-4dev")))
-    proc = subprocess.run([sys.executable, "-c", SCRIPT, *args], env=env, capture_output=True, text=True,
-                          timeout=300, cwd=str(ROOT))
-    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-6000:]
+    proc = run_on_four_host_devices(request, SCRIPT, [json.dumps([runs, list(splits)])])
     assert "RUNS-SHARDING-OK 4" in proc.stdout
     assert "argument --devices: devices=4: no controller of scenario 'head_on' splits" in proc.stderr
 

@@ -194,8 +194,7 @@ def build_plan(args) -> list[Point]:
             fixed = {**fixed, **{k: v for k, v in overrides.items() if k != swept}}
             pts += make_points(swept, values, fixed, name)
     else:
-        values = parse_values(args.values, args.sweep)
-        pts = make_points(args.sweep, values, overrides, "custom")
+        pts = make_points(args.sweep, parse_values(args.values, args.sweep), overrides, "custom")
     for p in pts:
         n = p.T / args.dt
         if abs(n - round(n)) > 1e-9 * max(1.0, n):

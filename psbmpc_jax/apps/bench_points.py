@@ -7,13 +7,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 from functools import lru_cache
+from typing import Any
 
 import numpy as np
 
 SWEEPS = ("n_cbs", "n_ps", "n_do", "n_so", "n_vertices")
 
 #: (swept, values, fixed settings) per preset figure.
-PRESETS = {
+PRESETS: dict[str, tuple[str, tuple, dict[str, Any]]] = {
     "fig5": ("n_cbs", (9, 39, 156, 390, 1014, 2028), {"n_ps": 1}),
     "fig6": ("n_ps", (1, 11, 21, 41, 61, 81, 101), {"n_cbs": 39}),
     "fig7": ("n_ps", (1, 5, 11, 21, 31, 41), {"n_cbs": 1014}),
@@ -86,7 +87,7 @@ def situation_for(p: Point):
     eps = p.eps if rdp else 2.0
     if p.still:   # same spot and heading as the dynamic situations, standing still, no obstacles
         own = _nidelva(2.0, 1, True).own_ship
-        own = OwnShip(state=[own.state[0], own.state[1], own.state[2], 0.0], waypoints=own.waypoints, U_d=0.0,
+        own = OwnShip(state=np.array([own.state[0], own.state[1], own.state[2], 0.0]), waypoints=own.waypoints, U_d=0.0,
                       length=own.length, width=own.width)
         rings, _ = nidelva_polygons(eps, 13 if p.largest_only else p.n_so, rdp)
         polys = (rings[-1],) if p.largest_only else tuple(rings)
@@ -102,7 +103,7 @@ def situation_for(p: Point):
         for k in range(2, p.n_do):
             frac = 0.25 + 0.1 * ((k - 2) % 8)
             q = pos + frac * run * u + (-1.0) ** k * 3.0 * np.array([-u[1], u[0]])
-            obstacles.append(Obstacle(state=[q[0], q[1], -2.0 * u[0], -2.0 * u[1]], cov=np.diag([4.0, 4.0, .05, .05]),
+            obstacles.append(Obstacle(state=np.array([q[0], q[1], -2.0 * u[0], -2.0 * u[1]]), cov=np.diag([4.0, 4.0, .05, .05]),
                                       length=5.0, width=3.0, n_ps=p.n_ps))
     return Situation(own, tuple(obstacles), tuple(base.polygons[:p.n_so]))
 

@@ -219,6 +219,7 @@ class Runner:
             t0 = time.perf_counter()
             res = evaluate_reference(situation, behaviours, Params(r_ct=p.r_ct), cfg64, samples=ref_samples)
             times.append(time.perf_counter() - t0)
+        assert res is not None          # --reference-repeats is a positive integer
         used = sum(times)
         self.ref_used += used
         rate = used / len(times) / units

@@ -85,7 +85,7 @@ def run(args) -> int:
     if not args.check:
         return 0
     want = tuple(SITUATION_CODES[k] for k in args.types)
-    got = collections.Counter()
+    got: collections.Counter[str] = collections.Counter()
     bad = []
     for p in paths:
         cls = classify_straight_line(load_scenario(p))

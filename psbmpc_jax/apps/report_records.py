@@ -12,6 +12,8 @@ from collections import defaultdict
 
 import numpy as np
 
+from ..safe_io import json_schema, read_json_document
+
 __all__ = ["SCHEMA", "REQUIRED_FIELDS", "load_results", "linear_fit", "impl_label", "find_crossover",
            "group_records"]
 
@@ -55,12 +57,12 @@ def _not_bench_file(path, lineno: int, error: str) -> ValueError:
     """The error for a file that is not benchmark results: what it seems to be, and what is expected."""
     kind = ""
     try:   # a whole JSON document (e.g. metrics.json of psbmpc-jax run) rather than JSON Lines?
-        doc = json.loads(pathlib.Path(path).read_text(encoding="utf-8"))
-    except (ValueError, OSError):
-        doc = None
-    if isinstance(doc, dict) and isinstance(doc.get("schema"), str):
-        what = " (metrics.json of psbmpc-jax run)" if doc["schema"].startswith("psbmpc-sim/") else ""
-        kind = f"; this file is one {doc['schema']!r} JSON document{what}, not benchmark results"
+        schema = json_schema(read_json_document(path, what="JSON document"))
+    except ValueError:
+        schema = None
+    if schema is not None:
+        what = " (metrics.json of psbmpc-jax run)" if schema.startswith("psbmpc-sim/") else ""
+        kind = f"; this file is one {schema!r} JSON document{what}, not benchmark results"
     return ValueError(f"{path}:{lineno}: {error}{kind}. {EXPECTED}")
 
 

@@ -81,7 +81,7 @@ def _str_list(value, field: str, source, *, allow_none: bool = False) -> tuple:
         value = [value]
     if not isinstance(value, (list, tuple)) or not value:
         raise ValueError(f"{_where(source)}campaign field '{field}' must be a non-empty list, got {value!r}")
-    out = []
+    out: list[str | None] = []
     for i, v in enumerate(value):
         if v is None and allow_none:
             out.append(None)
@@ -193,7 +193,8 @@ def resolve(defn: CampaignDefinition) -> dict:
     scenarios = []
     for item in defn.scenarios:
         path = scenario_path(item)
-        names, effective = set(), {}
+        names: set[str] = set()
+        effective: dict[str, str | None] = {}
         for m in defn.methods:
             try:
                 sc = load_scenario(item, method=m)

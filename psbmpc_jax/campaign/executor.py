@@ -25,7 +25,7 @@ import threading
 import time
 
 from .definition import Task, scenario_path, tasks
-from .store import read_campaign, write_task
+from .store import CampaignError, read_campaign, write_task
 
 __all__ = ["ENGINES", "run_task", "run_local", "run_ray", "ray_missing_message"]
 
@@ -144,6 +144,7 @@ def _drive_worker(folder, todo: queue.Queue, failed: dict, lock: threading.Lock,
             if proc is None:
                 proc = _start_worker(folder)
             try:
+                assert proc.stdin is not None and proc.stdout is not None     # opened with PIPE
                 proc.stdin.write(tid + "\n")
                 proc.stdin.flush()
                 line = proc.stdout.readline()
@@ -165,7 +166,7 @@ def _drive_worker(folder, todo: queue.Queue, failed: dict, lock: threading.Lock,
                     failed[tid] = msg["error"]
                 _report(on_done, False, tid, msg["error"])
     finally:
-        if proc is not None:
+        if proc is not None and proc.stdin is not None:
             proc.stdin.close()
             proc.wait()
 
@@ -217,5 +218,7 @@ def _ray_task(folder: str, task_id: str) -> dict:
 
     enable_compilation_cache()
     doc = read_campaign(folder)
+    if doc is None:
+        raise CampaignError(f"{folder}: no campaign.json; the campaign folder is gone or was never prepared")
     task = next(t for t in tasks(doc["resolved"]) if t.task_id == task_id)
     return run_task(folder, task, doc)

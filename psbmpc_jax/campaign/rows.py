@@ -20,6 +20,7 @@ Column groups (docs/campaigns.md lists them all):
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -80,7 +81,7 @@ def _target_columns(t: dict | None) -> dict:
 def _colregs_columns(encounters: list) -> dict:
     from ..evaltool.results import SCORE_NAMES
 
-    out = {"colregs_encounters": len(encounters)}
+    out: dict[str, Any] = {"colregs_encounters": len(encounters)}
     first = encounters[0] if encounters else {}
     out.update(colregs_situation=first.get("situation"), colregs_status=first.get("status"),
                colregs_t_cpa_s=first.get("t_cpa_s"), colregs_r_cpa_m=first.get("r_cpa_m"))

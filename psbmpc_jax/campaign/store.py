@@ -27,7 +27,7 @@ import pathlib
 import re
 
 from ..runfolder import sha256_file
-from ..safe_io import TEMP_SUFFIX, OutputError, atomic_open, atomic_write_text
+from ..safe_io import TEMP_SUFFIX, OutputError, atomic_open, atomic_write_text, read_json_document
 from .definition import definition_hash, differences, tasks
 
 __all__ = ["SCHEMA", "CAMPAIGN_FILE", "RUNS_FILE", "CampaignError", "prepare_folder", "read_campaign",
@@ -53,18 +53,8 @@ def _now() -> str:
 
 def read_campaign(folder) -> dict | None:
     """``campaign.json`` of ``folder`` (None when there is none); a file of another schema raises."""
-    p = pathlib.Path(folder) / CAMPAIGN_FILE
-    if not p.is_file():
-        return None
-    try:
-        doc = json.loads(p.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise CampaignError(f"{p}: cannot be read as a campaign file ({exc})") from None
-    if not isinstance(doc, dict) or doc.get("schema") != SCHEMA:
-        schema = doc.get("schema") if isinstance(doc, dict) else None
-        raise CampaignError(f"{p}: not a psbmpc-jax campaign file (schema {schema!r}, expected {SCHEMA!r}); it is "
-                            f"not overwritten")
-    return doc
+    return read_json_document(pathlib.Path(folder) / CAMPAIGN_FILE, what="campaign file", schema=SCHEMA,
+                              error=CampaignError, missing_ok=True, note="; it is not overwritten")
 
 
 def _our_files(folder: pathlib.Path) -> list[pathlib.Path]:
@@ -144,11 +134,11 @@ def task_done(folder, task_id: str, digest: str) -> bool:
     if not (m.is_file() and t.is_file()):
         return False
     try:
-        doc = json.loads(m.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
-        log.warning("%s: unreadable done marker; the task runs again", m)
+        doc = read_json_document(m, what="done marker")
+    except ValueError as exc:
+        log.warning("%s; the task runs again", exc)
         return False
-    if doc.get("definition_sha256") != digest:
+    if not isinstance(doc, dict) or doc.get("definition_sha256") != digest:
         return False
     if not _intact(t, doc):
         log.warning("%s: differs from its done marker (size or SHA-256); the task runs again", t)

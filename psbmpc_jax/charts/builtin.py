@@ -61,6 +61,7 @@ def trondheim_chart(kind: str = "psbmpc", *, origin=None, zone: int | None = Non
         native = CRSInfo("utm", "ETRS89", 33)
     else:
         raise ValueError(f"kind must be 'psbmpc' or 'shapefile', got {kind!r}")
+    assert native.zone is not None          # both native frames are UTM
     out_zone = native.zone if zone is None else check_zone(zone)
     if origin is None:
         e, n = lonlat_to_utm(PIREN_ORIGIN_LATLON[1], PIREN_ORIGIN_LATLON[0], out_zone, datum=native.datum)

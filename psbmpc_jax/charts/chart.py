@@ -80,7 +80,9 @@ class Chart:
 
     @property
     def zone(self) -> int:
-        return self.crs_info.zone
+        zone = self.crs_info.zone
+        assert zone is not None                 # the chart's CRS is UTM (checked in __post_init__)
+        return zone
 
     @property
     def n_vertices(self) -> tuple[int, ...]:
@@ -125,7 +127,7 @@ class Chart:
             return np.stack([n, e], axis=1)
 
         if origin is None:
-            oe, on = convert_utm(self.origin[0], self.origin[1], info.zone, zone, from_south=info.south,
+            oe, on = convert_utm(self.origin[0], self.origin[1], self.zone, zone, from_south=info.south,
                                  to_south=south, datum=info.datum)
             origin = (float(oe), float(on))
         origin = tuple(float(v) for v in origin)

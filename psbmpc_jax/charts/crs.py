@@ -24,6 +24,7 @@ class CRSInfo:
         """Canonical ``"EPSG:nnnn"`` string."""
         if self.kind == "lonlat":
             return "EPSG:4258" if self.datum == "ETRS89" else "EPSG:4326"
+        assert self.zone is not None            # a UTM CRS has a zone
         if self.datum == "ETRS89" and not self.south:
             return f"EPSG:{25800 + self.zone}"
         return f"EPSG:{(32700 if self.south else 32600) + self.zone}"

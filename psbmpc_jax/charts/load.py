@@ -47,10 +47,13 @@ def combine_charts(charts: Sequence[Chart], *, zone: int | None = None, origin=N
         if any(not i.same_grid(infos[0]) for i in infos):
             raise ValueError(f"charts have different CRSs ({[i.name for i in infos]}); pass zone= to convert them "
                              f"to one UTM zone")
-        zone = infos[0].zone
+        zone = charts[0].zone
     first = charts[0].reproject(zone)
     origin = first.origin if origin is None else tuple(float(v) for v in origin)
-    polys, ids, layers, reports = [], [], [], []
+    polys: list = []
+    ids: list = []
+    layers: list[str] = []
+    reports: list[dict] = []
     for c in charts:
         c = c.reproject(zone, origin=origin) if c.zone != zone else c.with_origin(origin)
         polys += c.polygons

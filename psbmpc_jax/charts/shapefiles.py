@@ -22,7 +22,7 @@ def _shapefile_layers(path: pathlib.Path) -> dict[str, pathlib.Path]:
     """Layer name -> .shp path for a .shp file or a folder (its .shp files and those one level down)."""
     if path.is_dir():
         found = sorted(path.glob("*.shp")) + sorted(path.glob("*/*.shp"))
-        layers = {}
+        layers: dict[str, pathlib.Path] = {}
         for p in found:
             layers.setdefault(p.stem, p)
         if not layers:
@@ -152,6 +152,7 @@ def load_shapefile_sources(sources: dict, where: str, origin, layer, crs, zone) 
     report = dict(skipped_layers=tuple(skipped), n_null_shapes=nulls,
                   layer_crs={n: i.name for n, i in infos.items()})
     src = where + (f" [layers: {', '.join(infos)}]" if len(sources) > 1 or explicit else "")
+    assert out_info is not None             # raws is not empty: at least one layer was projected
     return build_chart(merged, out_info, origin=origin, zone=None, source=src, report=report)
 
 

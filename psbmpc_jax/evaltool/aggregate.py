@@ -42,7 +42,9 @@ def aggregate(evaluations, scores=SCORE_NAMES) -> dict:
     if isinstance(evaluations, Evaluation):
         evaluations = [evaluations]
     evaluations = list(evaluations)
-    everything, per_pair, runs_of = [], {}, {}
+    everything: list = []
+    per_pair: dict[tuple, list] = {}
+    runs_of: dict[tuple, set] = {}
     for r, ev in enumerate(evaluations):
         for e in ev.encounters:
             everything.append(e)

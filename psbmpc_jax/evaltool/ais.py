@@ -101,6 +101,8 @@ def load_ais_csv(p: pathlib.Path, header: list[str], rows: list[tuple[int, list[
     if not (math.isfinite(step) and step > 0):
         raise ValueError(f"dt (the common clock's step) must be a finite number of seconds > 0, got {dt!r}")
     cols = ais_columns(header)
+    if cols is None:
+        raise ValueError(f"{p}: the header lacks AIS columns (required: {', '.join(AIS_COLUMNS)})")
     opt = [c in cols for c in AIS_OPTIONAL_COLUMNS]
     if any(opt) and not all(opt):
         raise ValueError(f"{p}: give both optional columns {' and '.join(AIS_OPTIONAL_COLUMNS)}, or neither "

@@ -30,7 +30,7 @@ import math
 import pathlib
 import sys
 
-from ..safe_io import OutputError, atomic_write_text, file_output_problem, same_file
+from ..safe_io import OutputError, atomic_write_text, file_output_problem, read_json_document, same_file
 from .aggregate import aggregate
 from .evaluate import PAIR_MODES, evaluate_tracks
 from .explain import EXPLAIN_SCHEMA, explain_encounter, explanation_text
@@ -141,7 +141,9 @@ def stored_params(path) -> tuple[EvalParams, str] | None:
     if not metrics.is_file():
         raise FileNotFoundError(f"{metrics}: the run folder has no metrics.json")
     verify_member(metrics)
-    doc = json.loads(metrics.read_text(encoding="utf-8"))
+    doc = read_json_document(metrics, what="run's metrics file")
+    if not isinstance(doc, dict):
+        raise ValueError(f"{metrics}: not a run's metrics file (a JSON {type(doc).__name__}, not an object)")
     stored = doc.get("scenario", {}).get("evaluation") or doc.get("colregs_evaluation", {}).get("params")
     if not stored:
         return None
@@ -192,10 +194,8 @@ def output_problem(out, paths, force: bool = False) -> str | None:
         return f"--out {out}: {problem}"
     if o.is_file() and not force:
         try:
-            ours = json.loads(o.read_text(encoding="utf-8")).get("schema") == OUTPUT_SCHEMA
-        except (OSError, UnicodeDecodeError, ValueError, AttributeError):
-            ours = False
-        if not ours:
+            read_json_document(o, what="evaluate output", schema=OUTPUT_SCHEMA)
+        except ValueError:
             return (f"--out {out}: the file exists and is not an earlier psbmpc-jax evaluate output; choose "
                     f"another name, remove it, or pass --force to replace it")
     return None
@@ -276,7 +276,9 @@ def run_evaluate(args, parser: argparse.ArgumentParser) -> int:
             problem = output_problem(args.out, args.paths, force=args.force)
         if problem:
             parser.error(problem)
-    docs, texts, figures = [], [], []
+    docs: list[dict] = []
+    texts: list[str] = []
+    figures: list[tuple] = []
     for path in args.paths:
         try:
             stored = stored_params(path)

@@ -165,6 +165,7 @@ def _delay_why(ctx: PairContext, m: Maneuver | None, r_ref: float, r_man: float 
     ref = "r_det" if ctx.p.delay_reference == "encounter_start" else "r_Stage3"
     if m is None:
         return "no manoeuvre overlaps the encounter [start, CPA]: 1"
+    assert r_man is not None                    # the range at the manoeuvre's start, set with m
     head = f"first manoeuvre ({_man_text(m)}) starts at r_man {r_man:.1f} m (stage {int(ctx.stage[m.start])})"
     if r_ref - r_cpa <= 0:
         return f"{head}; {ref} {r_ref:.1f} m ≤ r_cpa {r_cpa:.1f} m: 0"

@@ -64,7 +64,7 @@ def evaluate_tracks(tracks: Tracks, params: EvalParams | str | None = "default",
         g = pair_geometry(tr.north, tr.east, tr.course, tr.speed, i, j, p)
         geo[i, j] = g
         windows[i, j] = find_windows(g, tr.speed[i], tr.speed[j], i, j, p)
-    give_way_spans = {i: [] for i in range(tr.n_vessels)}
+    give_way_spans: dict[int, list[tuple[int, int, int]]] = {i: [] for i in range(tr.n_vessels)}
     for (i, j), ws in windows.items():
         give_way_spans[i] += [(j, w.k_s, w.k_c) for w in ws if w.complete and w.situation in GIVE_WAY]
 

@@ -116,7 +116,7 @@ def explain_encounter(ev: Evaluation, e: Encounter, run: int | None = None) -> d
              and term.value}
     lo, hi = e.k_detect, e.k_cpa
     key, formula, _ = COMPOSITION.get(e.situation, (None, None, ()))
-    dominant = max(costs, key=costs.get) if costs and max(costs.values()) > 0 else None
+    dominant = max(costs, key=lambda name: costs[name]) if costs and max(costs.values()) > 0 else None
     return {
         "run": run, "vessel": e.vessel, "other": e.other, "situation": e.situation, "status": e.status,
         "score": key, "S_sit": e.scores.S_sit, "S_safety": e.scores.S_safety, "composition": formula,

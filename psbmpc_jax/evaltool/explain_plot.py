@@ -28,12 +28,16 @@ def _span(ev: Evaluation, e: Encounter) -> slice:
 def plot_explanation(ev: Evaluation, e: Encounter, x: dict, path, dpi: int = 110) -> pathlib.Path:
     """Draw encounter ``e`` of ``ev`` with its explanation ``x`` (:func:`~psbmpc_jax.evaltool.explain.
     explain_encounter`) and write it to ``path`` as PNG, atomically.  Returns the path."""
+    if ev.resampled is None:
+        raise ValueError("plot_explanation needs an Evaluation made by evaluate_tracks (it keeps the resampled "
+                         "tracks)")
     import matplotlib
 
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
 
     tr, t = ev.resampled, ev.t
+    assert tr is not None                       # checked above
     i, j = e.vessel_index, e.other_index
     sl = _span(ev, e)
     fig, (ax, axr) = plt.subplots(1, 2, figsize=(13, 6.2), gridspec_kw={"width_ratios": [1.1, 1]})

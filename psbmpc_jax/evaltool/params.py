@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import Any
 from dataclasses import dataclass, fields
 
 __all__ = ["EvalParams", "PRESETS", "get_params", "preset_names", "STAND_ON_MODES", "DELAY_REFERENCES",
@@ -231,7 +232,7 @@ def _validate(p: EvalParams) -> None:
 
 # --------------------------------------------------------------------------------------------------- presets
 #: The Smooth-SBMPC paper's Table V (Mahipala & Johansen 2024): the twelve values it changed from the tool's defaults.
-INLAND_SMALL_CHANGES = dict(
+INLAND_SMALL_CHANGES: dict[str, Any] = dict(
     r_stage2_m=80.0, r_stage3_m=45.0, r_stage4_m=16.0,
     r_pref_m=7.0, r_min_m=6.0, r_nm_m=5.0, r_col_m=4.0,
     epsilon_speed_mps=0.2,

@@ -8,11 +8,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, fields
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .maneuvers import Maneuver
 from .params import EvalParams
+
+if TYPE_CHECKING:
+    from .tracks import Tracks
 
 __all__ = ["EncounterScores", "Term", "Encounter", "Evaluation", "SCORE_NAMES", "STATUSES"]
 
@@ -78,7 +82,7 @@ class Term:
 
     Attributes:
         name: the key in :class:`EncounterScores` (``"P_delay"``, ``"S_r"`` ...).
-        value: its value (the same number as in the scores).
+        value: its value (the same number as in the scores; None where the score does not apply).
         k: the sample index (evaluation grid) of the event that set it -- the manoeuvre start for P_delay,
             the sample of the largest course deviation for P_na_delta_chi ... -- or None when nothing fired.
         why: the condition that decided it, in words with the numbers used.
@@ -86,7 +90,7 @@ class Term:
     """
 
     name: str
-    value: float
+    value: float | None
     k: int | None
     why: str
     data: dict = field(default_factory=dict)
@@ -190,7 +194,7 @@ class Evaluation:
     encounters: tuple
     maneuvers: dict
     source: str | None = None
-    resampled: object | None = None
+    resampled: Tracks | None = None
 
     def of(self, vessel: str | None = None, other: str | None = None) -> list[Encounter]:
         """The encounters of ``vessel`` (default: the own-ship) with ``other`` (default: any)."""

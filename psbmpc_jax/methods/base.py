@@ -19,6 +19,8 @@ from typing import TYPE_CHECKING, Any, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
+from ..design_ship import DesignShip
+
 if TYPE_CHECKING:                        # for the annotations only
     from ..situation import Situation
 
@@ -262,42 +264,6 @@ class BuildContext:
     devices: Any = None
 
 
-@dataclass(frozen=True)
-class DesignShip:
-    """The ship a method's default settings were tuned for, and the ships they are taken to fit.
-
-    Distances in a method's settings (safety zones, COLREGS ranges, corridors, route-exchange ranges) are in
-    metres of its design ship's scale, and its times and speed bounds follow the design speed.  The rule
-    (the same for every method): the defaults fit a ship whose length and cruise speed are each within a
-    factor :attr:`factor` (3) of the design ship's, and whose cruise speed lies in ``speed_range`` when one is
-    given (a bound the cost drives the ship to, e.g. the two-level method's U_max).  A scenario that gives the
-    method's own section (:attr:`Method.tuning_sections`) has tuned it and is not checked.
-
-    Attributes:
-        length_m, speed_mps: the design ship's length [m] and cruise speed [m/s].
-        source: where the tuning comes from (paper by authors and year, or "our proposal ...").
-        factor: the fit factor (> 1).
-        speed_range: an explicit (lowest, highest) cruise speed [m/s] that replaces the factor rule for speed.
-    """
-
-    length_m: float
-    speed_mps: float
-    source: str
-    factor: float = 3.0
-    speed_range: tuple | None = None
-
-    def misfit(self, length: float, speed: float) -> str | None:
-        """Why a ship of ``length`` [m] at cruise speed ``speed`` [m/s] is outside the fit, or None."""
-        lo_l, hi_l = self.length_m / self.factor, self.length_m * self.factor
-        lo_u, hi_u = self.speed_range or (self.speed_mps / self.factor, self.speed_mps * self.factor)
-        why = []
-        if length > 0 and not lo_l <= length <= hi_l:     # a point target (length 0) has no scale to compare
-            why.append(f"length {length:g} m outside {lo_l:.3g}-{hi_l:.3g} m")
-        if not lo_u <= speed <= hi_u:
-            why.append(f"cruise speed {speed:g} m/s outside {lo_u:.3g}-{hi_u:.3g} m/s")
-        return "; ".join(why) or None
-
-
 class Method:
     """A collision-avoidance method: its name, what it may run, how it builds its controller and what the
     results record about it.  Subclass it (class attributes + :meth:`build`) and register an instance with
@@ -311,9 +277,9 @@ class Method:
         diagnostics: whether its controller reports :data:`INFO_NAMES` per update for the own-ship
             (``SimulationResult.colav_info``).
         tuning_sections: the ``mpc.<key>`` sections that hold its scale-bearing settings.
-        design_ship: the ship its default settings were tuned for (:class:`DesignShip`), or None (its tuning
-            is the scenario's preset, chosen by the file).  :meth:`check_fit` refuses a ship outside it when
-            the file gives none of :attr:`tuning_sections`.
+        design_ship: the ship its default settings were tuned for (:class:`DesignShip`), or None.
+            :meth:`check_fit` refuses a ship outside it (:meth:`design_for`: a method whose tuning is the
+            scenario's preset takes the preset's) when the file gives none of :attr:`tuning_sections`.
     """
 
     name: ClassVar[str] = ""
@@ -323,11 +289,16 @@ class Method:
     tuning_sections: ClassVar[tuple] = ()
     design_ship: ClassVar[DesignShip | None] = None
 
-    def check_fit(self, ships, given_sections) -> None:
+    def design_for(self, mpc) -> DesignShip | None:
+        """The design ship of this method's settings in a scenario whose ``mpc`` section is ``mpc`` (an
+        :class:`~psbmpc_jax.scenario.MPCSpec`, or None): :attr:`design_ship`."""
+        return self.design_ship
+
+    def check_fit(self, ships, given_sections, mpc=None) -> None:
         """ValueError when this method's default settings do not fit one of ``ships`` (each with ``name``,
         ``length`` [m] and ``U_d`` [m/s]): the file gives none of :attr:`tuning_sections` (``given_sections``:
-        the ``mpc`` section keys it gives) and a ship lies outside :attr:`design_ship`."""
-        design = self.design_ship
+        the ``mpc`` keys it gives) and a ship lies outside the design ship (:meth:`design_for` of ``mpc``)."""
+        design = self.design_for(mpc)
         if design is None or any(k in given_sections for k in self.tuning_sections):
             return
         for ship in ships:

@@ -69,10 +69,17 @@ def _sbmpc_family_grounding(scenario) -> bool:
 
 
 class Psbmpc(Method):
-    """PSB-MPC: the grid search with the default cost terms and ``mpc.n_ps`` prediction scenarios."""
+    """PSB-MPC: the grid search with the default cost terms and ``mpc.n_ps`` prediction scenarios.  Its tuning
+    is the preset (``mpc.preset``, adjusted by ``mpc.params``): the design ship is the preset's."""
 
     name = "psbmpc"
     description = "PSB-MPC grid search (Tengesdal et al. 2022)"
+    tuning_sections = ("params",)
+
+    def design_for(self, mpc) -> DesignShip | None:
+        from ..presets import get_preset      # not one of the light method modules (tests/test_layers.py)
+
+        return None if mpc is None else get_preset(mpc.preset).design_ship
 
     def build(self, scenario, ships, context: BuildContext):
         from .grid import GridController
@@ -103,6 +110,10 @@ class Refined(Method):
 
     def __init__(self, base: Method, name: str, description: str):
         self.base, self.name, self.description = base, name, description
+        self.tuning_sections = base.tuning_sections
+
+    def design_for(self, mpc) -> DesignShip | None:
+        return self.base.design_for(mpc)
 
     def build(self, scenario, ships, context: BuildContext):
         option_terms(scenario, self.name)          # refused when mpc.colregs_option is on (not in the refinement)

@@ -221,7 +221,7 @@ class GridController:
             walls = np.full(len(jobs), wall / len(jobs))
         first = np.array([mpc.behaviours[int(b)][0] for b in best], dtype=float).reshape(len(jobs), 2)
         snapshot = None
-        if kept is not None:
+        if kept is not None and keep is not None:      # kept: the keep job's arrays
             snapshot = unpack(kept, situations[keep], mpc.behaviours, wall,
                               per_polygon=config.grounding_mode == "exact", names=COST_NAMES)
         out = Decision(jobs=jobs, first=first, costs=np.asarray(costs, float), walls=np.asarray(walls, float),

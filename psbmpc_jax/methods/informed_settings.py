@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 
 from ..config import (as_bool, as_choice, as_mapping, as_number, check_keys)
@@ -56,7 +57,7 @@ def parse_informed(d) -> InformedSpec:
     w = "mpc.informed"
     d = as_mapping(d, w)
     check_keys(d, _INFORMED_KEYS, w)
-    kw = {}
+    kw: dict[str, Any] = {}
     for key in ("route_exchange", "circular"):
         if key in d:
             kw[key] = as_bool(d[key], f"{w}.{key}")

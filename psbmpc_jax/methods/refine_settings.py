@@ -4,6 +4,7 @@ here (registered by :mod:`psbmpc_jax.methods.builtin`).  Light: no JAX."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 
 from ..checks import integer, multiple_of
@@ -41,7 +42,7 @@ def parse_refine(d, config: PlannerConfig) -> RefineSpec:
     w = "mpc.refine"
     d = as_mapping(d, w)
     check_keys(d, _REFINE_KEYS, w)
-    kw = {}
+    kw: dict[str, Any] = {}
     if "n_starts" in d:
         kw["n_starts"] = integer(d["n_starts"], f"{w}.n_starts", ge=1, le=MAX_STARTS)
     if "horizon_s" in d:

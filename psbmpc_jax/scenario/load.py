@@ -5,6 +5,8 @@ from __future__ import annotations
 import copy
 import os
 import pathlib
+from typing import Any
+
 import numpy as np
 import shapely
 import shapely.validation
@@ -105,7 +107,7 @@ def scenario_from_dict(data: dict, base_dir=None, source: str | None = None, *, 
     evaluation = read_evaluation(data.get("evaluation", {}) or {})
 
     chart = inline = None
-    info = dict(source=None, origin=None, crs=None)
+    info: dict[str, Any] = dict(source=None, origin=None, crs=None)
     rdp_eps = clip = None
     if "chart" in data:
         chart, inline, info, rdp_eps, clip = chart_source(data["chart"], base_dir, origin_ll)
@@ -221,7 +223,7 @@ def _check_method_fit(mpc, own, targets) -> None:
         if t.colav != "none":
             runs.setdefault(t.colav, []).append(t)
     for name, ships in runs.items():
-        get_method(name).check_fit(ships, mpc.given)
+        get_method(name).check_fit(ships, mpc.given, mpc)
 
 
 def _check_solve_memory(mpc, n_targets: int, land: bool) -> None:

@@ -67,8 +67,8 @@ def read_mpc(d, dt: float) -> MPCSpec:
     ctx = SectionContext(mpc=d, method=method, period=period)
     _sections(d, ctx, after_config=False)
     n_ps = d.get("n_ps", PRESETS[preset].n_ps)
-    if (isinstance(n_ps, bool) or not isinstance(n_ps, numbers.Integral) or n_ps < 1 or n_ps % 2 == 0
-            or n_ps > MPC_MAX_N_PS):
+    if (isinstance(n_ps, bool) or not isinstance(n_ps, numbers.Integral) or int(n_ps) < 1 or int(n_ps) % 2 == 0
+            or int(n_ps) > MPC_MAX_N_PS):
         raise ValueError(f"mpc.n_ps must be an odd integer from 1 to {MPC_MAX_N_PS}, got {show(n_ps)}")
 
     config = dict(as_mapping(d.get("config", {}) or {}, "mpc.config"))
@@ -102,7 +102,7 @@ def read_mpc(d, dt: float) -> MPCSpec:
             raise ValueError(f"mpc.speed_factors x mpc.course_offsets_deg make {n_b} control behaviours (the product "
                              f"of all set sizes); at most {limits.MAX_BEHAVIOURS} allowed")
     for k, v in config.items():
-        if isinstance(v, bool) or (isinstance(v, numbers.Integral) and abs(v) > 10 ** 15):
+        if isinstance(v, bool) or (isinstance(v, numbers.Integral) and abs(int(v)) > 10 ** 15):
             raise ValueError(f"mpc.config.{k} must be a number or a name, got {v!r}"[:200])
     try:
         cfg, prm, behaviours = build_mpc(preset, config, params, speeds, courses)
@@ -115,7 +115,7 @@ def read_mpc(d, dt: float) -> MPCSpec:
     _sections(d, ctx, after_config=True)
     return MPCSpec(preset=preset, config=cfg, params=prm, behaviours=np.asarray(behaviours, dtype=float),
                    n_ps=int(n_ps), period=period, method=method, sections=dict(ctx.parsed),
-                   given=tuple(k for k in SECTIONS if k in d))
+                   given=tuple(k for k in (*SECTIONS, "params") if k in d))
 
 
 def read_evaluation(d) -> EvalParams:
@@ -161,5 +161,5 @@ def _enable_x64() -> None:
     JAX setting; arrays created before keep their dtype)."""
     import jax
 
-    if not jax.config.jax_enable_x64:
+    if not jax.config.jax_enable_x64:  # type: ignore[attr-defined]  # jax's Config stub lacks its flags
         jax.config.update("jax_enable_x64", True)

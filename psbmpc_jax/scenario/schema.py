@@ -130,8 +130,8 @@ class MPCSpec:
             by the methods it belongs to).  They read as attributes: ``mpc.smooth``, ``mpc.fis``, ``mpc.solver``,
             ``mpc.refine``, ``mpc.sbmpc`` (``sbmpc``, ``psbmpc_2020`` and the lower level of ``two_level``),
             ``mpc.informed``, ``mpc.two_level``.
-        given: the keys of the sections the file gives (the others are defaults; a method whose tuning
-            sections are all defaults is checked against the ship it was tuned for,
+        given: the keys of the sections the file gives, and ``"params"`` when it gives ``mpc.params`` (the
+            others are defaults; a method whose tuning sections are all defaults is checked against the ship it was tuned for,
             :meth:`psbmpc_jax.methods.Method.check_fit`).
     """
 

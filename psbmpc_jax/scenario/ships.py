@@ -3,6 +3,8 @@ route exchange and collision avoidance."""
 
 from __future__ import annotations
 import dataclasses
+from typing import Any
+
 import numpy as np
 from shapely.geometry import LineString, Point
 from .. import scenario_checks as limits
@@ -77,6 +79,7 @@ def read_ship(d, where: str, *, own: bool, ctx: dict) -> ShipSpec:
                              f"{hint}")
 
     pkey = one_of(d, ("position_m", "position_utm", "position_latlon"), where, required=True)
+    assert pkey is not None                     # required=True: one of them or an error
     pos = as_point(d[pkey], f"{where}.{pkey}")
     if pkey == "position_utm":
         utm_allowed(pkey)
@@ -111,7 +114,7 @@ def read_ship(d, where: str, *, own: bool, ctx: dict) -> ShipSpec:
         if not isinstance(sp, (list, tuple)) or not sp:
             raise ValueError(f"{where}.speed_plan must be a non-empty list of {{t_s, speed_mps | speed_kn}} "
                              f"(leave it out for a constant nominal speed), got {sp!r}")
-        rows = []
+        rows: list = []
         for i, e in enumerate(sp):
             w = f"{where}.speed_plan[{i}]"
             e = as_mapping(e, w)
@@ -197,7 +200,7 @@ def read_ship(d, where: str, *, own: bool, ctx: dict) -> ShipSpec:
 
 def _exchange_and_motion(d, where: str) -> dict:
     """``shares_route``, ``rule18_role``, ``motion_model`` and ``vessel_model`` of one ship."""
-    out = {}
+    out: dict[str, Any] = {}
     if "shares_route" in d:
         out["shares_route"] = as_bool(d["shares_route"], f"{where}.shares_route")
     if "rule18_role" in d:

@@ -4,6 +4,7 @@ inline; UTM or lat/lon origin) and their clipping around the routes."""
 from __future__ import annotations
 import numbers
 import pathlib
+from typing import Any
 from functools import lru_cache
 import numpy as np
 import shapely
@@ -38,7 +39,7 @@ def read_sensor(d, dt: float) -> SensorSpec:
     d = as_mapping(d, "sensor")
     check_keys(d, _SENSOR_KEYS, "sensor")
     base = SensorSpec()
-    kw = {}
+    kw: dict[str, Any] = {}
     if "position_std_m" in d:
         kw["position_std"] = as_number(d["position_std_m"], "sensor.position_std_m", gt=0)
     if "period_s" in d:

@@ -18,6 +18,7 @@ import yaml
 from ..evaltool import Tracks, evaluate_tracks
 from ..evaltool.params import EvalParams
 from ..scenario import Scenario, scenario_from_dict
+from ..safe_io import read_json_document
 from ..scenario.mpc import read_evaluation
 from .sampling import EncounterBatch, GeneratedEncounter
 
@@ -120,13 +121,15 @@ def write_scenarios(encounters, out_dir, *, overwrite: bool = False, validate: b
     stale = []
     if overwrite and manifest.is_file():
         try:
-            old = json.loads(manifest.read_text(encoding="utf-8"))
-            stale = [out / f["file"] for f in old.get("files", [])
-                     if isinstance(f, dict) and isinstance(f.get("file"), str) and "/" not in f["file"]
-                     and f["file"] not in names]
-        except (ValueError, OSError, AttributeError) as exc:
-            raise ValueError(f"{manifest}: not a readable manifest ({exc}); remove it or choose another "
-                             f"folder") from None
+            old = read_json_document(manifest, what="scenario-generation manifest")
+            if not isinstance(old, dict) or not isinstance(old.get("files", []), list):
+                raise ValueError(f"{manifest}: not a scenario-generation manifest (a JSON object with a list "
+                                 f"'files' expected)")
+        except ValueError as exc:
+            raise ValueError(f"{exc}; remove it or choose another folder") from None
+        stale = [out / f["file"] for f in old.get("files", [])
+                 if isinstance(f, dict) and isinstance(f.get("file"), str) and "/" not in f["file"]
+                 and f["file"] not in names]
     out.mkdir(parents=True, exist_ok=True)
     for e, p in zip(items, paths):
         _atomic_write(p, _yaml_text(e), overwrite)
@@ -157,14 +160,14 @@ def _ships(scenario) -> tuple[list[str], np.ndarray, np.ndarray, np.ndarray, flo
                 float(scenario.duration))
     if not isinstance(scenario, dict) or "own_ship" not in scenario:
         raise ValueError("scenario must be a psbmpc_jax.scenario.Scenario or a scenario mapping with own_ship")
-    ships = [scenario["own_ship"]] + list(scenario.get("targets") or [])
-    for i, s in enumerate(ships):
+    mapped = [scenario["own_ship"]] + list(scenario.get("targets") or [])
+    for i, s in enumerate(mapped):
         missing = [k for k in ("name", "position_m", "course_deg", "speed_mps") if k not in s]
         if missing:
             raise ValueError(f"ship {i} of the mapping lacks {missing} (straight_line_tracks reads position_m, "
                              f"course_deg and speed_mps; load other files with psbmpc_jax.scenario.load_scenario)")
-    return ([s["name"] for s in ships], np.array([s["position_m"] for s in ships], float),
-            np.radians([float(s["course_deg"]) for s in ships]), np.array([float(s["speed_mps"]) for s in ships]),
+    return ([s["name"] for s in mapped], np.array([s["position_m"] for s in mapped], float),
+            np.radians([float(s["course_deg"]) for s in mapped]), np.array([float(s["speed_mps"]) for s in mapped]),
             float(scenario["simulation"]["duration_s"]))
 
 

@@ -33,6 +33,7 @@ import shapely
 from shapely.geometry import LineString, Point, Polygon
 
 from ..charts import Chart
+from ..evaltool.params import EvalParams
 from ..scenario import scenario_from_dict
 from .sectors import (CHECK_SAMPLES, check_feasible, min_distance, pair_angles, robust_class, start_time,
                       velocity)
@@ -83,7 +84,7 @@ class GenerationContext:
 
     settings: GenerationSettings
     types: tuple
-    evaluation: object
+    evaluation: EvalParams
     d_collision: float
     land: Land
     template: dict
@@ -172,8 +173,11 @@ def prepare(types, settings="harbour", chart=None, base_dir=None) -> GenerationC
         raise ValueError(f"chart must be None, a chart section (mapping) or a psbmpc_jax.charts.Chart, got "
                          f"{type(chart).__name__}")
     duration = s.duration_s(types)
+    # a stand-in own-ship of the size and speed the files will have (the method's settings are checked against it)
     probe = dict(template, name="probe", simulation={"dt_s": s.dt_s, "duration_s": duration},
-                 own_ship={"name": "OS", "position_m": [0.0, 0.0], "course_deg": 0.0, "speed_mps": 1.0})
+                 own_ship={"name": "OS", "position_m": [0.0, 0.0], "course_deg": 0.0,
+                           "speed_mps": 0.5 * (s.own_speed_mps[0] + s.own_speed_mps[1]),
+                           "length_m": s.ship_length_m, "width_m": s.ship_width_m})
     if "chart" in probe:
         probe["chart"] = {k: v for k, v in dict(probe["chart"]).items() if k != "clip_m"}   # all the land
     try:
@@ -332,7 +336,9 @@ def _draw(rng, ctx: GenerationContext, name: str, seed, index, validate: bool, m
         if why:
             counts[why] += 1
             continue
-        placed, recs = [], []
+        assert own is not None                  # no rejection reason: a ship was drawn
+        placed: list[_Ship] = []
+        recs = []
         for kind in ctx.types:
             for _ in range(TARGET_TRIES):
                 if tries >= max_tries:
@@ -437,7 +443,8 @@ def generate_encounters(types, n: int, *, seed: int, settings="harbour", chart=N
         prefix = ctx.types[0] if len(set(ctx.types)) == 1 else "mixed"
     if not isinstance(prefix, str) or not prefix or not all(c.isalnum() or c in "_-." for c in prefix):
         raise ValueError(f"prefix must be a non-empty name of letters, digits, '_', '-' or '.', got {prefix!r}")
-    out, total = [], Counter()
+    out = []
+    total: Counter[str] = Counter()
     for i in range(int(n)):
         e = generate_encounter(ctx.types, seed=seed, index=i, name=f"{prefix}_{i:04d}", validate=validate,
                                max_tries=max_tries, context=ctx)

@@ -16,7 +16,7 @@ import pathlib
 import numpy as np
 
 from ..provenance import commit, versions
-from ..safe_io import atomic_write_text
+from ..safe_io import atomic_write_text, read_json_document
 from ..runfolder import MANIFEST, RunFolderError, RunWriter, verify_member
 from .trajectories import (CSV_DIGITS, TRAJECTORY_SCHEMA, Trajectories, load_trajectories, write_trajectories,
                            write_trajectory_files)
@@ -340,8 +340,9 @@ def write_index(out_dir) -> pathlib.Path:
     for path in sorted(out.glob("*/metrics.json")):
         try:
             manifest = verify_member(path, require_manifest=True)
-            doc = json.loads(path.read_text(encoding="utf-8"))
-        except (RunFolderError, OSError, json.JSONDecodeError) as exc:
+            assert manifest is not None          # require_manifest: a member of a run folder or an error
+            doc = read_json_document(path, what="metrics file", schema=SCHEMA, error=RunFolderError)
+        except RunFolderError as exc:
             skipped.append(f"- `{path.parent.name}/`: {exc}")
             continue
         s = doc["summary"]

@@ -403,7 +403,7 @@ def animate_run(result, run: int = 0, path="animation.gif", *, fps: int = 10, ma
         title.set_text(f"{sc.name}, run {run}: t = {result.t[k]:.0f} s (ships drawn x{scale:.0f})")
         return tracks + hulls + [title]
 
-    writers = [(path, animation.PillowWriter(fps=fps))]
+    writers: list[tuple[pathlib.Path, animation.AbstractMovieWriter]] = [(path, animation.PillowWriter(fps=fps))]
     if (animation.writers.is_available("ffmpeg") if mp4 is None else mp4):
         writers.append((path.with_suffix(".mp4"), animation.FFMpegWriter(fps=fps)))
     try:

@@ -180,7 +180,7 @@ class _Progress:
         self.total, self.label, self.enabled, self.unit = max(int(total), 1), label, enabled, unit
         self.first_compiles = first_compiles
         self.t0 = time.perf_counter()
-        self.t_first = None            # when the first tick came (the rate is measured from there)
+        self.t_first: float | None = None  # when the first tick came (the rate is measured from there)
         self.done, self.last_pct, self.last_draw = 0, -1, 0.0
         self.tty = sys.stderr.isatty()
         self.bar = None
@@ -345,7 +345,8 @@ class _ClosedLoop:
         self.colav_info = {name: np.full((R, M), np.nan) for name in INFO_NAMES}
         # per ship: the per-step sequence being followed [R, N, 2], its step [s] and the time of its update
         self.sequences: dict[int, tuple[np.ndarray, float, float]] = {}
-        self.calls, self.snapshot = [], None
+        self.calls: list[dict] = []
+        self.snapshot: dict | None = None
         self.snap_pending = bool(self.controlled[0]) and self.colav.snapshots
         pos_var, vel_var = sensor.colav_target_cov
         self.true_cov = np.diag([pos_var, pos_var, vel_var, vel_var])
@@ -447,6 +448,7 @@ class _ClosedLoop:
                 if d.sequences is None:
                     self.sequences.pop(i, None)
                 else:
+                    assert d.seq_dt is not None     # Decision: sequences come with their step
                     self.sequences[i] = (d.sequences[rows], float(d.seq_dt), float(self.t[k]))
             if d.snapshot is not None:
                 kept = d.snapshot

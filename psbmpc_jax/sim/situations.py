@@ -21,6 +21,8 @@ tool code   metrics name            meaning
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from ..evaltool.encounters import find_windows
@@ -58,7 +60,7 @@ def first_encounters(t, own, targets, params: EvalParams) -> list[dict]:
                     course=states[..., 2], speed=states[..., 3],
                     names=tuple(f"v{i}" for i in range(states.shape[0])), own=0)
     tr = tracks.resample(params.sample_interval_s)
-    out = []
+    out: list[dict[str, Any]] = []
     for j in range(1, tr.n_vessels):
         g = pair_geometry(tr.north, tr.east, tr.course, tr.speed, 0, j, params)
         windows = find_windows(g, tr.speed[0], tr.speed[j], 0, j, params)

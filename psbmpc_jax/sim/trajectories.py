@@ -272,7 +272,7 @@ def _shape(p, header, rows) -> tuple[int, int, int] | None:
     if header[-3:] != list(SHAPE_COLUMNS):
         return None
     try:
-        declared = {tuple(int(v) for v in r[-3:]) for r in rows}
+        declared = {(int(r[-3]), int(r[-2]), int(r[-1])) for r in rows}
     except ValueError:
         raise ValueError(f"{p}: the columns {', '.join(SHAPE_COLUMNS)} must hold integers") from None
     if len(declared) != 1:

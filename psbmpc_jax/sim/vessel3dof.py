@@ -63,9 +63,9 @@ class Vessel3DOFParams:
 
     name: str
     length: float                  # m (documentation, and the scale of the presets)
-    M: tuple                       # 3x3 inertia incl. added mass [kg, kg m, kg m^2]
-    D0: tuple                      # 3x3 constant linear damping
-    D1: tuple                      # 3x3 linear damping per m/s of speed over ground
+    M: tuple | np.ndarray          # 3x3 inertia incl. added mass [kg, kg m, kg m^2]
+    D0: tuple | np.ndarray         # 3x3 constant linear damping
+    D1: tuple | np.ndarray         # 3x3 linear damping per m/s of speed over ground
     X_uu: float = 0.0              # quadratic surge drag coefficient [N s^2/m^2], >= 0
     U_floor: float = 0.0           # D1 is scaled by max(U, U_floor) [m/s], >= 0
     X_max: float = math.inf        # max forward surge force [N], > 0
@@ -381,12 +381,11 @@ _PSV = _psv_116m()
 PRESETS = {"psv_116m": _PSV, "small_5m": _small_5m(_PSV)}
 
 
-def preset(name: str) -> Vessel3DOFParams:
+def preset(name: str | None) -> Vessel3DOFParams:
     """The named preset (``psv_116m`` or ``small_5m``)."""
-    try:
-        return PRESETS[name]
-    except KeyError:
-        raise ValueError(f"vessel_model must be one of {sorted(PRESETS)}, got {name!r}") from None
+    if name not in PRESETS:
+        raise ValueError(f"vessel_model must be one of {sorted(PRESETS)}, got {name!r}")
+    return PRESETS[name]
 
 
 # ----------------------------------------------------------------------------------- step-response fit

@@ -89,7 +89,7 @@ class DocpArgs(NamedTuple):
     corridor: Corridor
     weights: SmoothWeights
     model: ShipModel
-    segment: jax.Array = 0
+    segment: jax.Array | int = 0
     path: Path | None = None
     clearance: Clearance | None = None
 

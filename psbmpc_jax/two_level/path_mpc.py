@@ -36,6 +36,7 @@ import numpy as np
 
 from ..methods.two_level_settings import TwoLevelSpec
 from ..nlp import STATUS_NAMES, SolverSettings, max_violation, solve_docp
+from ..status import Status
 from ..numerics import wrap_angle as wrap
 from .path_frame import to_leg_frame
 from .static_obstacles import StaticCircles, circle_residuals
@@ -371,7 +372,7 @@ def make_circles(centres=None, radii=None, dtype=None) -> Circles:
 
 
 def status_name(result: PathMpcResult) -> str:
-    return STATUS_NAMES[int(result.status)]
+    return STATUS_NAMES[Status(int(result.status))]
 
 
 __all__ = ["PathMpcSettings", "PathMpcData", "PathMpcResult", "Legs", "Circles", "DEFAULT_SOLVER", "rollout",

@@ -320,7 +320,7 @@ def leg_corridor(waypoints, j, land_polygons, *, margin, half_width: float = DEF
     lk = land_key(land_polygons)
     a, b = w[j].copy(), w[j + 1].copy()
     key = (lk, a.tobytes(), b.tobytes(), half_width, sample, radius, margin, circle_margin, quad_segs, bool(device),
-           bool(jax.config.jax_enable_x64) if device else None)
+           bool(jax.config.jax_enable_x64) if device else None)  # type: ignore[attr-defined]  # jax's Config stub lacks its flags
     if key in _CORRIDORS:
         _CORRIDORS.move_to_end(key)
         _STATS["hits"] += 1
