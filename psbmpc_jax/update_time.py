@@ -115,7 +115,7 @@ def check(setting: str, estimate: float, what: str, hint: str,
 
 def _largest(ratios: dict) -> str:
     """The name whose ratio to its default is the largest (the setting a refusal names)."""
-    return max(ratios, key=ratios.get)
+    return max(ratios, key=lambda name: ratios[name])
 
 
 def check_refine(n_steps: int, n_obstacle_scenarios: int, n_starts: int, max_outer: int, max_inner: int, *,

@@ -221,7 +221,7 @@ class EarlyTerm:
         return TermValue(early_cost(ctx.offsets, give_way, chi_a=self.chi_apparent, K_early=self.K_early))
 
 
-TERM_CLASSES = {"stand_on": StandOnTerm, "apparent": ApparentTerm, "hold": HoldTerm, "early": EarlyTerm}
+TERM_CLASSES: dict[str, type] = {"stand_on": StandOnTerm, "apparent": ApparentTerm, "hold": HoldTerm, "early": EarlyTerm}
 
 
 def option_terms(spec) -> tuple:
@@ -236,7 +236,7 @@ def option_terms(spec) -> tuple:
     out = []
     for key in spec.active():
         cls = TERM_CLASSES[key]
-        names = {f.name for f in dataclasses.fields(cls)}
+        names = {f.name for f in dataclasses.fields(cls)}  # type: ignore[arg-type]  # every class is a dataclass
         out.append(cls(**{k: v for k, v in shared.items() if k in names}))
     return tuple(out)
 

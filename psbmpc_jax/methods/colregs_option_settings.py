@@ -8,6 +8,7 @@ or with ``enabled: false``, every method runs its published cost unchanged.  doc
 from __future__ import annotations
 
 import math
+from typing import Any
 from dataclasses import dataclass
 
 from ..config import as_bool, as_mapping, as_number, check_keys
@@ -79,7 +80,7 @@ def parse_colregs_option(d, method: str | None = None) -> ColregsOptionSpec:
     w = "mpc.colregs_option"
     d = as_mapping(d, w)
     check_keys(d, _KEYS, w)
-    kw = {}
+    kw: dict[str, Any] = {}
     for k in ("enabled",) + TERM_KEYS:
         if k in d:
             kw[k] = as_bool(d[k], f"{w}.{k}")
