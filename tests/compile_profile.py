@@ -17,7 +17,8 @@ import jax.monitoring
 
 EVENTS = {"/jax/core/compile/backend_compile_duration": "compile",
           "/jax/core/compile/jaxpr_trace_duration": "trace",
-          "/jax/core/compile/jaxpr_to_mlir_module_duration": "lower"}
+          "/jax/core/compile/jaxpr_to_mlir_module_duration": "lower",
+          "/jax/compilation_cache/compile_time_saved_sec": "cache_saved"}
 
 
 class CompileProfile:
@@ -40,7 +41,7 @@ class CompileProfile:
 
     def start(self, nodeid: str) -> None:
         self.current = {"test": nodeid, "t0": time.perf_counter(), "compile_s": 0.0, "trace_s": 0.0,
-                        "lower_s": 0.0, "n_compiles": 0, "programs": defaultdict(float)}
+                        "lower_s": 0.0, "cache_saved_s": 0.0, "n_compiles": 0, "programs": defaultdict(float)}
 
     def stop(self) -> None:
         rec, self.current = self.current, None
