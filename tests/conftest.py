@@ -78,6 +78,24 @@ def pytest_runtest_teardown(item, nextitem):
     release_compiled_programs()
 
 
+#: PSBMPC_TEST_PROFILE=DIR: wall and XLA compile time per test (tests/compile_profile.py, tools/test_profile.py)
+_PROFILE = None
+if os.environ.get("PSBMPC_TEST_PROFILE"):
+    from compile_profile import CompileProfile
+    _PROFILE = CompileProfile(os.environ["PSBMPC_TEST_PROFILE"], os.environ.get("PYTEST_XDIST_WORKER", "main"))
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_protocol(item, nextitem):
+    if _PROFILE is not None:
+        _PROFILE.start(item.nodeid)
+    try:
+        yield
+    finally:
+        if _PROFILE is not None:
+            _PROFILE.stop()
+
+
 def pytest_configure(config):
     """Persistent XLA compilation cache under .pytest_cache (set PSBMPC_TEST_NO_JAX_CACHE=1 to disable).
 
