@@ -3,7 +3,7 @@
 Off by default.  ``PSBMPC_TEST_PROFILE=DIR python -m pytest ...`` writes one JSON line per test to
 ``DIR/<worker>.jsonl`` (test id, wall seconds of setup + call + teardown, seconds and count of XLA backend
 compiles, jaxpr tracing and MLIR lowering seconds, and the compiled functions' names with their seconds).
-``python tools/test_profile.py DIR`` sums it per file and lists the programs compiled most often.
+``python tools/suite_profile.py DIR`` sums it per file and lists the programs compiled most often.
 It uses JAX's own monitoring events (``jax.monitoring``), so it measures what JAX reports, nothing patched."""
 
 from __future__ import annotations
@@ -38,6 +38,10 @@ class CompileProfile:
         if kind == "compile":
             self.current["n_compiles"] += 1
             self.current["programs"][str(kwargs.get("fun_name", "?"))] += duration
+
+    def close(self) -> None:
+        """Stop listening to JAX's events."""
+        jax.monitoring.unregister_event_duration_listener(self._listen)
 
     def start(self, nodeid: str) -> None:
         self.current = {"test": nodeid, "t0": time.perf_counter(), "compile_s": 0.0, "trace_s": 0.0,

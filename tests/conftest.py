@@ -78,7 +78,7 @@ def pytest_runtest_teardown(item, nextitem):
     release_compiled_programs()
 
 
-#: PSBMPC_TEST_PROFILE=DIR: wall and XLA compile time per test (tests/compile_profile.py, tools/test_profile.py)
+#: PSBMPC_TEST_PROFILE=DIR: wall and XLA compile time per test (tests/compile_profile.py, tools/suite_profile.py)
 _PROFILE = None
 if os.environ.get("PSBMPC_TEST_PROFILE"):
     from compile_profile import CompileProfile

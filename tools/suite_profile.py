@@ -1,6 +1,6 @@
 """Sum the per-test profile written with ``PSBMPC_TEST_PROFILE=DIR`` (tests/compile_profile.py).
 
-    python tools/test_profile.py DIR [--top 40]
+    python tools/suite_profile.py DIR [--top 40]
 
 Prints the suite's wall and compile seconds (summed over workers), the files by wall time with their compile
 share, the slowest tests, and the compiled programs by total compile seconds and count (a program compiled

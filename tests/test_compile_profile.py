@@ -1,0 +1,56 @@
+"""The suite's own profiler (tests/compile_profile.py) and its summary (tools/test_profile.py)."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import pytest
+
+from compile_profile import CompileProfile
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tools"))
+import suite_profile  # noqa: E402
+
+
+def test_a_compile_is_recorded_with_its_program_name(tmp_path):
+    prof = CompileProfile(str(tmp_path), "w0")
+    try:
+        def profiled_program(x):
+            return jnp.sin(x) * 3.0 + x.shape[0]
+
+        prof.start("tests/test_x.py::test_a")
+        jax.jit(profiled_program)(jnp.arange(7.0)).block_until_ready()
+        prof.stop()
+        prof.start("tests/test_x.py::test_b")                   # nothing compiled: the cached program
+        prof.stop()
+    finally:
+        prof.close()
+    a, b = (json.loads(line) for line in (tmp_path / "w0.jsonl").read_text().splitlines())
+    assert a["test"].endswith("test_a") and a["n_compiles"] >= 1 and a["compile_s"] > 0
+    assert any("profiled_program" in name for name in a["programs"]) and a["wall_s"] >= a["compile_s"]
+    assert b["n_compiles"] == 0 and b["programs"] == {}
+
+
+def test_summary_sums_files_and_programs(tmp_path, capsys):
+    rows = [{"test": "tests/test_a.py::t1", "wall_s": 10.0, "compile_s": 6.0, "trace_s": 1.0, "lower_s": 1.0,
+             "cache_saved_s": 0.0, "n_compiles": 2, "programs": {"jit(solve)": 5.0, "jit(add)": 1.0}},
+            {"test": "tests/test_b.py::t2", "wall_s": 4.0, "compile_s": 2.0, "trace_s": 0.0, "lower_s": 0.0,
+             "cache_saved_s": 0.0, "n_compiles": 1, "programs": {"jit(solve)": 2.0}}]
+    (tmp_path / "gw0.jsonl").write_text("\n".join(json.dumps(r) for r in rows) + "\n")
+    suite_profile.main([str(tmp_path)])
+    out = capsys.readouterr().out
+    assert "2 tests: 14 worker-s, of which trace+lower+compile 10 s (71 %), 3 compiles" in out
+    solve = next(line for line in out.splitlines() if line.startswith("jit(solve)"))
+    assert solve.split()[1:] == ["7.0", "2", "2"]
+
+
+def test_summary_refuses_an_empty_folder_and_a_bad_line(tmp_path):
+    with pytest.raises(SystemExit, match="no \\*.jsonl profile lines"):
+        suite_profile.main([str(tmp_path)])
+    (tmp_path / "gw1.jsonl").write_text("{not json\n")
+    with pytest.raises(SystemExit, match="gw1.jsonl:1: not a JSON line"):
+        suite_profile.main([str(tmp_path)])
