@@ -41,6 +41,7 @@ The float64 NumPy oracle is :mod:`psbmpc_jax.reference_colregs_option`.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import jax.numpy as jnp
@@ -140,6 +141,18 @@ def early_cost(offsets, give_way, *, chi_a, K_early):
 
 
 
+@dataclasses.dataclass(frozen=True)
+class _Thresholds:
+    """The encounter thresholds every option term reads (multiples of the pair's safety radius R_i, and the
+    smallest readily apparent course change); each term adds its own weights."""
+
+    engage_radii: float = 40.0
+    act_cpa_radii: float = 2.0
+    act_range_radii: float = 4.0
+    clear_radii: float = 4.0
+    chi_apparent: float = math.radians(30.0)
+
+
 def _option_term(name: str):
     def deco(cls):
         cls.name = name
@@ -150,14 +163,9 @@ def _option_term(name: str):
 
 
 @_option_term("stand_on")
-class StandOnTerm:
+class StandOnTerm(_Thresholds):
     """Rule 17 stand-on duty (module docstring).  Details: ``stand_on_hold [B]``, ``stand_on_port [B]`` (0/1)."""
 
-    engage_radii: float = 40.0
-    act_cpa_radii: float = 2.0
-    act_range_radii: float = 4.0
-    clear_radii: float = 4.0
-    chi_apparent: float = math.radians(30.0)
     du_apparent: float = 0.5
     K_stand_on: float = 10000.0
     K_port: float = 10000.0
@@ -172,14 +180,9 @@ class StandOnTerm:
 
 
 @_option_term("apparent")
-class ApparentTerm:
+class ApparentTerm(_Thresholds):
     """Rule 8(b) readily apparent alterations (module docstring)."""
 
-    engage_radii: float = 40.0
-    act_cpa_radii: float = 2.0
-    act_range_radii: float = 4.0
-    clear_radii: float = 4.0
-    chi_apparent: float = math.radians(30.0)
     du_apparent: float = 0.5
     K_apparent: float = 100.0
 
@@ -190,14 +193,9 @@ class ApparentTerm:
 
 
 @_option_term("hold")
-class HoldTerm:
+class HoldTerm(_Thresholds):
     """Hold the avoidance heading until past and clear (module docstring)."""
 
-    engage_radii: float = 40.0
-    act_cpa_radii: float = 2.0
-    act_range_radii: float = 4.0
-    clear_radii: float = 4.0
-    chi_apparent: float = math.radians(30.0)
     K_hold: float = 100.0
 
     def __call__(self, ctx: Context, params, config, samples) -> TermValue:
@@ -206,14 +204,9 @@ class HoldTerm:
 
 
 @_option_term("early")
-class EarlyTerm:
+class EarlyTerm(_Thresholds):
     """Early, readily apparent action by the give-way vessel (module docstring)."""
 
-    engage_radii: float = 40.0
-    act_cpa_radii: float = 2.0
-    act_range_radii: float = 4.0
-    clear_radii: float = 4.0
-    chi_apparent: float = math.radians(30.0)
     K_early: float = 100.0
 
     def __call__(self, ctx: Context, params, config, samples) -> TermValue:
@@ -227,8 +220,6 @@ TERM_CLASSES: dict[str, type] = {"stand_on": StandOnTerm, "apparent": ApparentTe
 def option_terms(spec) -> tuple:
     """The terms a :class:`~psbmpc_jax.methods.colregs_option_settings.ColregsOptionSpec` switches on (empty when
     it is not enabled), each with the spec's thresholds and its weight."""
-    import dataclasses
-
     shared = dict(engage_radii=spec.engage_radii, act_cpa_radii=spec.act_cpa_radii,
                   act_range_radii=spec.act_range_radii, clear_radii=spec.clear_radii, chi_apparent=spec.chi_apparent,
                   du_apparent=spec.du_apparent, K_stand_on=spec.K_stand_on, K_port=spec.K_port,
