@@ -46,6 +46,15 @@ def test_summary_sums_files_and_programs(tmp_path, capsys):
     assert "2 tests: 14 worker-s, of which trace+lower+compile 10 s (71 %), 3 compiles" in out
     solve = next(line for line in out.splitlines() if line.startswith("jit(solve)"))
     assert solve.split()[1:] == ["7.0", "2", "2"]
+    rec = tmp_path / "rec" / "profile.json"
+    suite_profile.main([str(tmp_path), "--json", str(rec), "--commit", "abc123"])
+    doc = json.loads(rec.read_text())
+    assert doc["meta"]["commit"] == "abc123" and doc["totals"] == {"tests": 2, "worker_s": 14.0,
+                                                                   "trace_lower_compile_s": 10.0, "compiles": 3}
+    assert doc["programs"]["jit(solve)"] == {"compile_s": 7.0, "tests": 2}
+    assert list(doc["files"]) == ["tests/test_a.py", "tests/test_b.py"]
+    with pytest.raises(SystemExit, match="exists"):                 # a record is never overwritten
+        suite_profile.main([str(tmp_path), "--json", str(rec)])
 
 
 def test_summary_refuses_an_empty_folder_and_a_bad_line(tmp_path):

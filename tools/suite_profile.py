@@ -1,6 +1,6 @@
 """Sum the per-test profile written with ``PSBMPC_TEST_PROFILE=DIR`` (tests/compile_profile.py).
 
-    python tools/suite_profile.py DIR [--top 40]
+    python tools/suite_profile.py DIR [--top 40] [--json OUT.json --commit SHA]
 
 Prints the suite's wall and compile seconds (summed over workers), the files by wall time with their compile
 share, the slowest tests, and the compiled programs by total compile seconds and count (a program compiled
@@ -27,12 +27,56 @@ def load(folder: Path) -> list[dict]:
     return rows
 
 
+def write_record(rows: list[dict], out: Path, commit: str | None) -> None:
+    """Per-file and per-program sums, the slowest tests and the run's environment, as one JSON document."""
+    import os
+    import platform
+    import sys
+    from datetime import datetime, timezone
+
+    import jax
+
+    if out.exists():
+        raise SystemExit(f"{out}: exists; give a new file name (records are never overwritten)")
+    files: dict = defaultdict(lambda: {"wall_s": 0.0, "compile_s": 0.0, "tests": 0})
+    progs: dict = defaultdict(lambda: {"compile_s": 0.0, "tests": 0})
+    for r in rows:
+        f = files[r["test"].split("::")[0]]
+        f["wall_s"] += r["wall_s"]
+        f["compile_s"] += r["compile_s"] + r["trace_s"] + r["lower_s"]
+        f["tests"] += 1
+        for name, sec in r["programs"].items():
+            progs[name]["compile_s"] += sec
+            progs[name]["tests"] += 1
+    doc = {"meta": {"what": "per-test profile of the test suite (PSBMPC_TEST_PROFILE)", "commit": commit,
+                    "date": datetime.now(timezone.utc).isoformat(timespec="seconds"), "python": sys.version.split()[0],
+                    "jax": jax.__version__, "platform": platform.machine(), "cpu_count": os.cpu_count()},
+           "totals": {"tests": len(rows), "worker_s": round(sum(r["wall_s"] for r in rows), 1),
+                      "trace_lower_compile_s": round(sum(r["compile_s"] + r["trace_s"] + r["lower_s"] for r in rows), 1),
+                      "compiles": sum(r["n_compiles"] for r in rows)},
+           "files": {k: {kk: round(vv, 1) if isinstance(vv, float) else vv for kk, vv in v.items()}
+                     for k, v in sorted(files.items(), key=lambda kv: -kv[1]["wall_s"])},
+           "programs": {k: {"compile_s": round(v["compile_s"], 1), "tests": v["tests"]}
+                        for k, v in sorted(progs.items(), key=lambda kv: -kv[1]["compile_s"])[:100]},
+           "slowest": [{"test": r["test"], "wall_s": round(r["wall_s"], 1), "compile_s": round(r["compile_s"], 1),
+                        "n_compiles": r["n_compiles"]} for r in sorted(rows, key=lambda r: -r["wall_s"])[:60]]}
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_suffix(out.suffix + ".tmp")
+    tmp.write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
+    tmp.replace(out)
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("folder", type=Path)
     ap.add_argument("--top", type=int, default=40)
+    ap.add_argument("--json", type=Path, default=None, help="also write the sums as a JSON record (refuses to "
+                    "overwrite an existing file)")
+    ap.add_argument("--commit", default=None, help="the commit the profiled run tested (stored in --json)")
     a = ap.parse_args(argv)
     rows = load(a.folder)
+    if a.json is not None:
+        write_record(rows, a.json, a.commit)
     wall = sum(r["wall_s"] for r in rows)
     comp = sum(r["compile_s"] + r["trace_s"] + r["lower_s"] for r in rows)
     print(f"{len(rows)} tests: {wall:.0f} worker-s, of which trace+lower+compile {comp:.0f} s "
