@@ -227,6 +227,10 @@ def test_controllers_get_the_terms_only_when_enabled():
     assert on.terms[:4] == DEFAULT_TERMS and [t.name for t in on.terms[4:]] == ["stand_on", "apparent", "hold",
                                                                                   "early"]
     assert REGISTRY["psbmpc"].record(on_sc)["colregs_option"]["enabled"] is True
+    # every method the option extends records it when on, and only then
+    for name in ("psbmpc", "sbmpc", "psbmpc_2020", "informed_sbmpc"):
+        assert REGISTRY[name].record(on_sc)["colregs_option"] == REGISTRY["psbmpc"].record(on_sc)["colregs_option"]
+        assert "colregs_option" not in REGISTRY[name].record(sc), name
     # a method the option does not reach is refused when built too (e.g. after the file was parsed for psbmpc)
     with pytest.raises(ValueError, match="method psbmpc_refine does not take it"):
         REGISTRY["psbmpc_refine"].build(on_sc, (0,), ctx)

@@ -63,6 +63,13 @@ def option_terms(scenario, method: str) -> tuple:
     return build(spec)
 
 
+def option_record(scenario) -> dict:
+    """The COLREGS option's settings for a method's record: ``{"colregs_option": ...}`` when it is on, else
+    nothing (the records of the published costs stay as they were)."""
+    spec = scenario.mpc.colregs_option
+    return {"colregs_option": asdict(spec)} if spec.enabled else {}
+
+
 def _sbmpc_family_grounding(scenario) -> bool:
     """The grounding term only where there is land to ground on (``mpc.sbmpc.grounding`` and polygons)."""
     return bool(scenario.mpc.sbmpc.grounding and scenario.polygons)
@@ -91,10 +98,7 @@ class Psbmpc(Method):
 
     def record(self, scenario) -> dict:
         m = scenario.mpc      # its weights and solver configuration are mpc.params / mpc.config (recorded apart)
-        out = {"preset": m.preset, "n_ps": m.n_ps, "n_cbs": len(m.behaviours)}
-        if m.colregs_option.enabled:       # only then: the records of the published cost stay as they were
-            out["colregs_option"] = asdict(m.colregs_option)
-        return out
+        return {"preset": m.preset, "n_ps": m.n_ps, "n_cbs": len(m.behaviours), **option_record(scenario)}
 
     def describe(self, scenario) -> str:
         m = scenario.mpc
@@ -155,10 +159,8 @@ class Sbmpc(Method):
                               n_ps=1, terms=self.terms(scenario), devices=context.devices)
 
     def record(self, scenario) -> dict:
-        out = {"sbmpc": asdict(scenario.mpc.sbmpc), "grounding_term": _sbmpc_family_grounding(scenario)}
-        if scenario.mpc.colregs_option.enabled:
-            out["colregs_option"] = asdict(scenario.mpc.colregs_option)
-        return out
+        return {"sbmpc": asdict(scenario.mpc.sbmpc), "grounding_term": _sbmpc_family_grounding(scenario),
+                **option_record(scenario)}
 
     def describe(self, scenario) -> str:
         return f"{len(scenario.mpc.behaviours)} behaviours, straight-line targets"
@@ -199,7 +201,8 @@ class InformedSbmpc(Method):
         from .sbmpc_family import informed_terms
 
         term, manoeuvring = informed_terms(scenario.mpc.informed)
-        return {"informed": asdict(scenario.mpc.informed), "term": resolved(term), "manoeuvring": resolved(manoeuvring)}
+        return {"informed": asdict(scenario.mpc.informed), "term": resolved(term), "manoeuvring": resolved(manoeuvring),
+                **option_record(scenario)}
 
     def describe(self, scenario) -> str:
         return f"{len(scenario.mpc.behaviours)} behaviours, d_init {scenario.mpc.informed.d_init:g} m"
