@@ -234,3 +234,15 @@ def test_controllers_get_the_terms_only_when_enabled():
     # a method the option does not reach is refused when built too (e.g. after the file was parsed for psbmpc)
     with pytest.raises(ValueError, match="method psbmpc_refine does not take it"):
         REGISTRY["psbmpc_refine"].build(on_sc, (0,), ctx)
+
+
+def test_term_defaults_are_the_settings_defaults():
+    """The term classes repeat the settings' defaults (the cost module may not import the method protocol's
+    settings: tests/test_layers.py); a term built on its own must weigh what the default file section weighs."""
+    import dataclasses
+
+    spec = ColregsOptionSpec()
+    for cls in co.TERM_CLASSES.values():
+        for f in dataclasses.fields(cls):
+            want = spec.chi_apparent if f.name == "chi_apparent" else getattr(spec, f.name)
+            assert f.default == want, (cls.__name__, f.name)
