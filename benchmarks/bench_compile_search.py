@@ -1,0 +1,94 @@
+"""Compile time of one solve with three small islands, by grounding search and by XLA flags: what the bounded
+search costs the first solve, and what the test suite's compile flags change.
+
+Each measurement runs in a fresh process (XLA reads ``XLA_FLAGS`` once, and no compiled program or cache is
+shared): the situation of ``bench_cpu_targets.py`` with polygons (3 islands, 176 vertices, one head-on target,
+n_ps 5, T 120 s, float32) at ``--n-cbs`` behaviours, ``solve`` lowered and compiled once with
+``grounding_search`` ``culled`` or ``bounded``.  Flag sets: ``default`` (what a user compiles), ``o0`` (the
+tests' ``--xla_backend_optimization_level=0``) and ``o0_legacy`` (also ``--xla_cpu_use_fusion_emitters=false``).
+Rounds are interleaved: every (flags, search) pair once per round.  Recorded per point: median / min / max of
+the trace+lower seconds and of the compile seconds, and the StableHLO line count.
+
+Usage: PYTHONPATH=. python benchmarks/bench_compile_search.py [--rounds 2] [--n-cbs 1014] [--out DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import time
+
+FLAGS = {"default": "", "o0": "--xla_backend_optimization_level=0",
+         "o0_legacy": "--xla_backend_optimization_level=0 --xla_cpu_use_fusion_emitters=false"}
+SEARCHES = ("culled", "bounded")
+
+
+def child(search: str, n_cbs: int) -> None:
+    import jax
+
+    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+    import bench_cpu_targets as bct
+    from psbmpc_jax import Planner, PlannerConfig
+    from psbmpc_jax.apps.bench_points import behaviours_for
+    from psbmpc_jax.solve import solve
+
+    config = PlannerConfig(T=120.0, dt=0.5, grounding_search=search)
+    planner = Planner(config, behaviours=behaviours_for(n_cbs))
+    prepared = jax.device_put(planner.prepare(bct.situation(True), key=jax.random.key(0)))
+    t0 = time.perf_counter()
+    lowered = solve.lower(*prepared, config=config)
+    t1 = time.perf_counter()
+    compiled = lowered.compile()
+    t2 = time.perf_counter()
+    best = int(jax.block_until_ready(compiled(*prepared))[2].best)
+    print(json.dumps({"lower_s": t1 - t0, "compile_s": t2 - t1, "hlo_lines": lowered.as_text().count("\n"),
+                      "best": best}))
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--rounds", type=int, default=2)
+    ap.add_argument("--n-cbs", type=int, default=1014)
+    ap.add_argument("--out", default=os.path.join(os.path.dirname(os.path.abspath(__file__)), "results"))
+    ap.add_argument("--child", choices=SEARCHES, help=argparse.SUPPRESS)
+    a = ap.parse_args(argv)
+    if a.rounds < 1:
+        ap.error("--rounds must be >= 1")
+    if a.child:
+        child(a.child, a.n_cbs)
+        return 0
+    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+    from _common import environment_meta, write_results
+
+    runs: dict = {(f, s): [] for f in FLAGS for s in SEARCHES}
+    for r in range(a.rounds):
+        for (flags, search), out in runs.items():
+            env = dict(os.environ, XLA_FLAGS=FLAGS[flags])
+            p = subprocess.run([sys.executable, os.path.abspath(__file__), "--child", search, "--n-cbs",
+                                str(a.n_cbs)], env=env, capture_output=True, text=True, timeout=900)
+            if p.returncode != 0:
+                raise SystemExit(f"{flags}/{search}: child failed ({p.returncode}): {p.stderr[-2000:]}")
+            rec = json.loads(p.stdout.strip().splitlines()[-1])
+            out.append(rec)
+            print(f"round {r} {flags:10s} {search:8s} lower {rec['lower_s']:6.1f} s  compile {rec['compile_s']:6.1f} s"
+                  f"  best {rec['best']}", flush=True)
+    points = []
+    for (flags, search), recs in runs.items():
+        lo, co = [x["lower_s"] for x in recs], [x["compile_s"] for x in recs]
+        points.append({"flags": flags, "xla_flags": FLAGS[flags], "grounding_search": search, "n_cbs": a.n_cbs,
+                       "hlo_lines": recs[0]["hlo_lines"], "best": sorted({x["best"] for x in recs}),
+                       "lower_median_s": statistics.median(lo), "lower_min_s": min(lo), "lower_max_s": max(lo),
+                       "compile_median_s": statistics.median(co), "compile_min_s": min(co),
+                       "compile_max_s": max(co), "n": len(recs)})
+    meta = environment_meta("compile time of one solve by grounding search and XLA flags", rounds=a.rounds,
+                            schedule="interleaved, one fresh process per measurement", load_avg=os.getloadavg())
+    write_results(a.out, "compile_search", meta, points)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
