@@ -11,6 +11,11 @@ the estimate and the limit, and how to raise the limit knowingly.
   ``PSBMPC_UPDATE_TIME_LIMIT`` (seconds, or ``off`` for no check).
 * :func:`refine_parts` / :func:`check_refine` -- the refinement (after the grid search, which is not counted).
 * :func:`smooth_parts` / :func:`check_smooth` -- Smooth-SBMPC (initialisation stage and DOCP).
+* :func:`grid_search_parts` / :func:`check_grid_search` -- the grid search (one :func:`psbmpc_jax.solve.solve`
+  of the PSB-MPC family), also the first part of a refinement's update.
+* :data:`TWO_LEVEL_UPDATE_S` -- the two-level MPC's update (measured, not modelled from shapes).
+
+:mod:`psbmpc_jax.simulation_time` builds the time of a whole simulation from these.
 
 The estimates are linear models whose coefficients were measured on the project's 2-core CPU machine at small
 sizes (``benchmarks/bench_update_time.py``; docs/limits.md, "Time of an update").  They count every solver
@@ -54,6 +59,28 @@ SMOOTH_INIT = (8.57e-5, 1.98e-5)
 #: (1 + targets) (J_d's value and gradient): 83.3 ms for 240 inner iterations at N_mpc 20 with 4 targets, 0.347 ms
 #: per iteration (benchmarks/results/smooth_step_cpu_20261123T210417Z.json, "docp").
 SMOOTH_ITER = (0.2e-3, 1.47e-6)
+#: Grid search, one solve, float32: GRID_FIXED_S + points x (GRID_POINT["base"] + land + obstacle scenarios x
+#: GRID_POINT[<estimator>] x max(1, n_samples / 500) for mc / ce), points = (N + 1) x padded behaviours; land:
+#: GRID_POINT["exact_vertex"] x chart vertices with exact grounding, GRID_POINT["grid"] with grid grounding.
+#: Fitted to records of the 2-core CPU machine (benchmarks/results/): without obstacles 5.7 ms at 1 014 behaviours,
+#: N 300 and one small polygon (bench_cpu_paper_v4.jsonl "fig10"): base 1.5e-8; exact grounding 2.2e-10 per point
+#: and vertex (the "fig9" vertex sweep: 1 734 and 21 961 vertices, 122 and 1 477 ms); the obstacle-scenario term
+#: between the head-on simulation (24 ms per solve with 1 x 5 obstacle scenarios, no land;
+#: sim_devices_cpu_20261129T100239Z.json, loop mode) and the core solve (29.7 ms with 2 x 5;
+#: core_cpu_20261122T085054Z.json); ce 31 times quadrature at 500 samples (974 against 29.7 ms, the same record; mc
+#: as quadrature there).  Grid grounding's land term (1e-8 per point) was not measured alone: the Nidelva
+#: simulation (grid grounding, 303 vertices: 14.7 ms per solve; sim_batch_cpu_20261122T133758Z.json) runs below the
+#: estimate with it.  The obstacle-scenario term is an upper bound where the sigma-shortcut culls far scenarios
+#: (the n_ps sweep "fig7": 225 ms measured at 2 x 41 scenarios, 430 ms estimated).
+GRID_FIXED_S = 2e-3
+GRID_POINT = dict(base=1.5e-8, exact_vertex=2.2e-10, grid=1e-8, quadrature=1e-8, mc=1e-8, ce=3.1e-7)
+#: float64 against float32, the same records: 6.7 without land (core: 198 / 29.7 ms), 57 for exact grounding
+#: ("fig9": 6 959 / 122 ms).
+GRID_FLOAT64 = dict(base=6.7, land=57.0)
+#: The two-level MPC, one update of the own-ship (the path-following NMPC and its SB-MPC): 6.0 ms with 3 targets
+#: and 8.0 ms with 4 (medians, benchmarks/results/path_mpc_cpu_20261126T114628Z.json); taken as 8 ms + 2 ms per
+#: target above 4 (not measured above 4).
+TWO_LEVEL_UPDATE_S = (8.0e-3, 2.0e-3)
 
 
 def time_limit() -> tuple[float | None, str]:
@@ -98,6 +125,37 @@ def smooth_parts(n_init: int, n_mpc: int, n_targets: int, n_starts: int, max_out
     docp = 0.0 if init_only else (float(n_starts) * max_outer * max_inner
                                   * (SMOOTH_ITER[0] + SMOOTH_ITER[1] * n_mpc * (1 + n_targets)))
     return {"init": init, "docp": docp}
+
+
+def grid_search_parts(n_steps: int, n_behaviours: int, n_obstacle_scenarios: int, land_vertices: int = 0,
+                      grounding_mode: str = "exact", dtype: str = "float32", estimator: str = "quadrature",
+                      n_samples: int = 500) -> dict:
+    """Seconds of one grid-search solve by part: ``{"fixed", "points", "land", "collision"}`` (``n_behaviours``
+    and ``n_obstacle_scenarios`` as padded, :func:`psbmpc_jax.limits.padded_sizes`; ``land_vertices`` 0: open
+    water)."""
+    points = (n_steps + 1) * float(n_behaviours)
+    wide = dtype == "float64"
+    scale = max(1.0, n_samples / 500.0) if estimator in ("mc", "ce") else 1.0
+    if not land_vertices:
+        land = 0.0
+    elif grounding_mode == "grid":
+        land = points * GRID_POINT["grid"] * (GRID_FLOAT64["base"] if wide else 1.0)
+    else:
+        land = points * land_vertices * GRID_POINT["exact_vertex"] * (GRID_FLOAT64["land"] if wide else 1.0)
+    base = GRID_FLOAT64["base"] if wide else 1.0
+    return {"fixed": GRID_FIXED_S, "points": points * GRID_POINT["base"] * base, "land": land,
+            "collision": points * n_obstacle_scenarios * GRID_POINT[estimator] * scale * base}
+
+
+def grid_search_seconds(config, n_behaviours: int, n_obstacle_scenarios: int, land_vertices: int = 0) -> float:
+    """:func:`grid_search_parts` summed, for a :class:`~psbmpc_jax.params.PlannerConfig`."""
+    return sum(grid_search_parts(config.n_steps, n_behaviours, n_obstacle_scenarios, land_vertices,
+                                 config.grounding_mode, config.dtype, config.estimator, config.n_samples).values())
+
+
+def two_level_seconds(n_targets: int) -> float:
+    """Seconds of one two-level MPC update (:data:`TWO_LEVEL_UPDATE_S`)."""
+    return TWO_LEVEL_UPDATE_S[0] + TWO_LEVEL_UPDATE_S[1] * max(0, n_targets - 4)
 
 
 def check(setting: str, estimate: float, what: str, hint: str,
@@ -156,5 +214,30 @@ def check_smooth(n_init: int, n_mpc: int, n_targets: int, n_starts: int, max_out
     return check(n[top], sum(parts.values()), what, hints[top], limit)
 
 
+def check_grid_search(config, n_behaviours: int, n_obstacle_scenarios: int, land_vertices: int = 0, *,
+                      names: dict | None = None, limit=None) -> float:
+    """:func:`check` of one grid-search solve (:func:`grid_search_parts`).  ``names`` maps ``"horizon"``,
+    ``"behaviours"``, ``"samples"``, ``"land"`` to the caller's names of those settings."""
+    parts = grid_search_parts(config.n_steps, n_behaviours, n_obstacle_scenarios, land_vertices,
+                              config.grounding_mode, config.dtype, config.estimator, config.n_samples)
+    n = {"horizon": "PlannerConfig.T / dt", "behaviours": "the behaviours", "samples": "PlannerConfig.n_samples",
+         "land": "the chart's vertices (with grounding_mode exact)", **(names or {})}
+    if parts["land"] >= max(parts["points"], parts["collision"]) and config.grounding_mode == "exact":
+        top = "land"
+    elif config.estimator != "quadrature" and parts["collision"] > parts["points"] + parts["land"]:
+        top = "samples"
+    else:
+        top = _largest({"horizon": config.n_steps / 300.0, "behaviours": n_behaviours / 1024.0})
+    what = (f"the grid search ({config.n_steps} steps x {n_behaviours} behaviours x {n_obstacle_scenarios} obstacle "
+            f"scenarios, {config.dtype}, estimator {config.estimator}"
+            + (f" with n_samples = {config.n_samples}" if config.estimator != "quadrature" else "")
+            + (f", {land_vertices} chart vertices, grounding {config.grounding_mode}" if land_vertices else "") + ")")
+    hints = {"horizon": "A shorter horizon or a larger dt", "behaviours": "Fewer behaviours",
+             "samples": "Fewer samples (or the quadrature estimator)",
+             "land": "grounding_mode grid, or a simpler chart (chart.rdp_eps_m, chart.clip_m)"}
+    return check(n[top], sum(parts.values()), what, hints[top], limit)
+
+
 __all__ = ["DEFAULT_LIMIT_S", "ENV", "time_limit", "fmt_seconds", "refine_parts", "smooth_parts", "check",
-           "check_refine", "check_smooth"]
+           "check_refine", "check_smooth", "grid_search_parts", "grid_search_seconds", "check_grid_search",
+           "two_level_seconds", "TWO_LEVEL_UPDATE_S"]

@@ -455,6 +455,10 @@ def run_scenarios(args, parser) -> int:
         seed = scenario.seed if args.seed is None else args.seed
         # mc / ce draw their sample table from a key: seeded like the measurement noise
         key = jax.random.key(seed) if scenario.mpc.config.estimator != "quadrature" else None
+        if not args.quiet:      # the estimate before the run (simulate refuses it above the limit)
+            from ..simulation_time import describe
+
+            print(f"psbmpc-jax run: {scenario.name}: {describe(scenario, args.runs)}", file=sys.stderr, flush=True)
         result = simulate(scenario, runs=args.runs, seed=args.seed, batch=args.batch, progress=not args.quiet,
                           key=key, devices=args.devices)
         out = pathlib.Path(args.out) / output_folder(scenario.name, args.method)

@@ -12,6 +12,7 @@ import shapely
 import shapely.validation
 from shapely.geometry import Polygon
 from .. import limits as resources
+from .. import simulation_time
 from .. import scenario_checks as limits
 from ..charts import count_vertices, to_ring_sets
 from ..checks import integer, multiple_of
@@ -203,16 +204,18 @@ def scenario_from_dict(data: dict, base_dir=None, source: str | None = None, *, 
                 n_vertices=int(sum(len(r) for rs in rings for r in rs)))
     _check_method_fit(mpc, own, targets)
     _check_solve_memory(mpc, len(targets), bool(rings))
-    _check_update_time(mpc, len(targets))
-    return Scenario(name=name, description=description, own_ship=own, targets=targets, sensor=sensor, mpc=mpc,
-                    polygons=rings, chart_info=info, dt=dt, duration=duration, runs=runs, seed=seed,
-                    collision_distance=coll, source=source, evaluation=evaluation)
+    _check_update_time(mpc, len(targets), int(info["n_vertices"]))
+    scenario = Scenario(name=name, description=description, own_ship=own, targets=targets, sensor=sensor, mpc=mpc,
+                        polygons=rings, chart_info=info, dt=dt, duration=duration, runs=runs, seed=seed,
+                        collision_distance=coll, source=source, evaluation=evaluation)
+    simulation_time.check(scenario)          # the whole simulation: updates x runs x planners
+    return scenario
 
 
 #: The methods whose solve is the grid search (:func:`psbmpc_jax.solve.solve`), with their scenarios per obstacle
 #: (None: ``mpc.n_ps``); their memory is estimated at load (:func:`psbmpc_jax.limits.check_solve`).  The
-#: smooth and two-level planners are not estimated.
-GRID_SEARCH_N_PS = {"psbmpc": None, "psbmpc_refine": None, "sbmpc": 1, "psbmpc_2020": 1, "informed_sbmpc": 1}
+#: smooth and two-level planners' memory is not estimated.
+GRID_SEARCH_N_PS = simulation_time.GRID_SEARCH_N_PS
 
 
 def _check_method_fit(mpc, own, targets) -> None:
@@ -240,14 +243,21 @@ def _check_solve_memory(mpc, n_targets: int, land: bool) -> None:
                                     "estimator": "mpc.config.n_samples", "n_mc": "mpc.sbmpc.n_mc"})
 
 
-def _check_update_time(mpc, n_targets: int) -> None:
-    """Refuse a refinement or Smooth-SBMPC configuration whose update would take longer than the limit
+def _check_update_time(mpc, n_targets: int, land_vertices: int) -> None:
+    """Refuse a grid-search, refinement or Smooth-SBMPC configuration whose update would take longer than the limit
     (:mod:`psbmpc_jax.update_time`), before anything is compiled."""
     from .. import update_time
     from ..methods.smooth_settings import DOCP_SOLVER_ITERATIONS, REFINE_SOLVER_ITERATIONS, SMOOTH_METHODS
 
     given = mpc.solver.given()
     names = {"iterations": "mpc.solver.max_outer x mpc.solver.max_inner"}
+    if mpc.method in GRID_SEARCH_N_PS:
+        n_b, n_os = resources.padded_sizes(len(mpc.behaviours), n_targets, GRID_SEARCH_N_PS[mpc.method] or mpc.n_ps)
+        update_time.check_grid_search(mpc.config, n_b, n_os, land_vertices,
+                                      names={"horizon": "mpc.config.T (with dt)",
+                                             "behaviours": "mpc.speed_factors x mpc.course_offsets_deg (the "
+                                                           "behaviours)", "samples": "mpc.config.n_samples",
+                                             "land": "the chart's vertices (mpc.config.grounding_mode exact)"})
     if mpc.method == "psbmpc_refine":
         mo, mi = (given.get(k, d) for k, d in zip(("max_outer", "max_inner"), REFINE_SOLVER_ITERATIONS))
         _, n_os = resources.padded_sizes(len(mpc.behaviours), n_targets, mpc.n_ps)

@@ -46,6 +46,7 @@ from ..methods.base import COST_NAMES, INFO_NAMES, BuildContext, Observation
 from ..methods.registry import build_controllers
 from ..planner import check_dtype
 from ..scenario_checks import check_run_size
+from .. import simulation_time
 from ..sharding import local_devices
 from ..scenario import Scenario, route_geometry
 from . import metrics as metrics_mod
@@ -561,6 +562,7 @@ def simulate(scenario: Scenario, *, runs: int | None = None, seed: int | None = 
     seed = integer(scenario.seed if seed is None else seed, "seed", ge=0)
     run_start = integer(run_start, "run_start", ge=0)
     check_run_size(scenario, runs)                 # a --runs override is held to the memory limit too
+    simulation_time.check(scenario, runs, runs_setting="runs")           # ... and to the time limit
     if not 0 <= snapshot_run < runs:
         raise ValueError(f"snapshot_run must be in [0, {runs}), got {snapshot_run}")
     devs = local_devices(devices)
