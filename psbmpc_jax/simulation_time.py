@@ -129,17 +129,23 @@ def check(scenario, runs: int | None = None, *, runs_setting: str = "monte_carlo
     if cap is None or total <= cap:
         return total
     mpc = scenario.mpc
+    methods = set(p["planners"])
+    shape = []                      # what sets the time of one update, per kind of planner
+    if methods & set(GRID_SEARCH_N_PS):
+        shape.append(f"{len(mpc.behaviours)} behaviours (mpc.speed_factors x mpc.course_offsets_deg) over "
+                     f"mpc.config.T = {mpc.config.T:g} s")
+    if methods & {"smooth_sbmpc", "sbmpc_init"}:
+        shape.append(f"mpc.smooth.T_init_s = {mpc.smooth.T_init:g} and T_mpc_s = {mpc.smooth.T_mpc:g}")
     settings = (f"simulation.duration_s = {scenario.duration:g} / mpc.update_period_s = {mpc.period:g} "
                 f"({p['updates']} MPC updates per run; simulation.dt_s = {scenario.dt:g}: {p['steps']} steps), "
-                f"{runs_setting} = {p['runs']}, {len(mpc.behaviours)} behaviours (mpc.speed_factors x "
-                f"mpc.course_offsets_deg) over mpc.config.T = {mpc.config.T:g} s, {len(p['planners'])} ship(s) "
-                f"planning ({', '.join(sorted(set(p['planners'])))})")
+                f"{runs_setting} = {p['runs']}, " + "".join(f"{x}, " for x in shape)
+                + f"{len(p['planners'])} ship(s) planning ({', '.join(sorted(methods))})")
     raise ResourceError(
         f"{settings}: the simulation takes about {update_time.fmt_seconds(total)} ({p['runs']} run(s) x "
         f"{p['updates']} updates x {update_time.fmt_seconds(p['update_s'])} per update, plus the simulator "
         f"{update_time.fmt_seconds(p['simulator_s'])}; estimated from the shapes with the times measured on a "
         f"2-core CPU); the limit is {update_time.fmt_seconds(cap)} ({source}). Fewer runs, a shorter duration_s, "
-        f"a longer update_period_s or fewer behaviours; to run it anyway, set {ENV} to more seconds (or 'off'); "
+        f"a longer update_period_s or a smaller planner (fewer behaviours, a shorter horizon); to run it anyway, set {ENV} to more seconds (or 'off'); "
         f"a campaign splits many runs into tasks (psbmpc-jax campaign)")
 
 

@@ -195,6 +195,8 @@ def test_solves_that_cannot_fit_are_refused_at_load(monkeypatch, mpc, method, ma
         scenario_from_dict(_solve_scenario(method, **mpc), land_checks="off")
     assert time.perf_counter() - t0 < 5.0
     monkeypatch.setenv("PSBMPC_MEMORY_LIMIT", "4TiB")                     # a machine that has it: accepted
+    monkeypatch.setenv("PSBMPC_UPDATE_TIME_LIMIT", "off")                 # (mc / ce at 1e6+ samples: minutes
+    monkeypatch.setenv("PSBMPC_SIMULATION_TIME_LIMIT", "off")             # per update, refused by time)
     scenario_from_dict(_solve_scenario(method, **mpc), land_checks="off")
 
 

@@ -37,6 +37,7 @@ def smooth_file() -> dict:
 @pytest.fixture(autouse=True)
 def default_limit(monkeypatch):
     monkeypatch.delenv(update_time.ENV, raising=False)
+    monkeypatch.delenv("PSBMPC_SIMULATION_TIME_LIMIT", raising=False)
 
 
 def test_light_defaults_match_the_solver_settings():
@@ -94,6 +95,9 @@ def test_smooth_initialisation_horizon_is_refused_at_load_and_the_override_lets_
                                             r"stage 10000 steps x 4 target\(s\).* the limit is 5 min"):
         scenario_from_dict(copy.deepcopy(d), base_dir=base)
     monkeypatch.setenv(update_time.ENV, "off")
+    with pytest.raises(ResourceError, match=r"mpc\.smooth\.T_init_s = 10000 .* the simulation takes about"):
+        scenario_from_dict(copy.deepcopy(d), base_dir=base)              # 20 runs x 221 such updates: days
+    monkeypatch.setenv("PSBMPC_SIMULATION_TIME_LIMIT", "off")
     assert scenario_from_dict(copy.deepcopy(d), base_dir=base).mpc.smooth.T_init == 10_000
 
 
