@@ -11,8 +11,8 @@ this device, float32:
 * ``runs``: ``simulate`` of a 60 s head-on with 3 behaviours and 300 Monte Carlo runs (the device's default
   batch mode);
 * ``track``: ``evaluate_tracks`` of 2 vessels x 2 000 000 samples (1 s apart: 23 days);
-* ``behaviours_65k``, ``horizon_40k``, ``horizon_100k``, ``track_1e7``: 65 160 behaviours, T 20 000 s (40 000
-  steps), T 50 000 s (100 000 steps, PlannerConfig's bound), 10⁷ samples.
+* ``behaviours_65k``, ``horizon_40k``, ``horizon_100k``, ``track_1e7``, ``runs_1000``: 65 160 behaviours,
+  T 20 000 s (40 000 steps), T 50 000 s (100 000 steps, PlannerConfig's bound), 10⁷ samples, 1 000 runs.
 
 Each case also records the memory estimate of :mod:`psbmpc_jax.limits` where there is one, and its wall time.
 
@@ -63,13 +63,13 @@ RUNS = """
 import json
 from psbmpc_jax.scenario import scenario_from_dict
 from psbmpc_jax.sim import simulate
-d = {"name": "runs", "simulation": {"dt_s": 0.5, "duration_s": 60}, "monte_carlo": {"runs": 300, "seed": 1},
-     "mpc": {"preset": "nidelva", "update_period_s": 5, "config": {"T": 40},
-             "speed_factors": [[1.0, 0.0]], "course_offsets_deg": [[-30, 0, 30]]},
-     "own_ship": {"name": "OS", "position_m": [0, 0], "course_deg": 0, "speed_mps": 2, "waypoints_m": [[0, 0], [200, 0]]},
-     "targets": [{"name": "TS1", "position_m": [160, 10], "course_deg": 180, "speed_mps": 2}]}
+d = {{"name": "runs", "simulation": {{"dt_s": 0.5, "duration_s": 60}}, "monte_carlo": {{"runs": {runs}, "seed": 1}},
+     "mpc": {{"preset": "nidelva", "update_period_s": 5, "config": {{"T": 40}},
+             "speed_factors": [[1.0, 0.0]], "course_offsets_deg": [[-30, 0, 30]]}},
+     "own_ship": {{"name": "OS", "position_m": [0, 0], "course_deg": 0, "speed_mps": 2, "waypoints_m": [[0, 0], [200, 0]]}},
+     "targets": [{{"name": "TS1", "position_m": [160, 10], "course_deg": 180, "speed_mps": 2}}]}}
 res = simulate(scenario_from_dict(d, land_checks="off"))
-print(json.dumps(dict(runs=300, steps=121, ships=2, result=type(res).__name__)))
+print(json.dumps(dict(runs={runs}, steps=121, ships=2, result=type(res).__name__)))
 """
 
 TRACK = """
@@ -96,12 +96,13 @@ CASES = {
     "behaviours": SOLVE.format(T=150.0, n_targets=1, n_ps=5, wide=True),
     "scenarios": SOLVE.format(T=150.0, n_targets=8, n_ps=9, wide=False),
     "horizon": SOLVE.format(T=10000.0, n_targets=1, n_ps=5, wide=False),
-    "runs": RUNS,
+    "runs": RUNS.format(runs=300),
     "track": TRACK.format(n=2_000_000),
     "behaviours_65k": SOLVE.format(T=150.0, n_targets=1, n_ps=5, wide=4),
     "horizon_40k": SOLVE.format(T=20000.0, n_targets=1, n_ps=5, wide=False),
     "track_1e7": TRACK.format(n=10_000_000),
     "horizon_100k": SOLVE.format(T=50000.0, n_targets=1, n_ps=5, wide=False),
+    "runs_1000": RUNS.format(runs=1000),
 }
 
 

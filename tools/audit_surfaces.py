@@ -372,6 +372,15 @@ CASES = [
     def case(tmp):
         return run_file(tmp, scenario({"method": "psbmpc_2020", "sbmpc": {"n_mc": 1000000}})) or accepted("ran")
     ''', match=r"mpc\.sbmpc\.n_mc: .*needs about"),
+    C("simulation_of_days", "runaway", "(beyond the issue's list) settings each inside its bound whose product is "
+      "days of simulation: 86 400 s at a 0.5 s MPC period x 50 runs", '''
+    def case(tmp):
+        d = scenario(simulation={"dt_s": 0.5, "duration_s": 86400}, monte_carlo={"runs": 50, "seed": 1})
+        d["mpc"]["update_period_s"] = 0.5
+        d["own_ship"]["waypoints_m"] = [[0, 0], [100000, 0]]
+        return run_file(tmp, d) or accepted("ran")
+    ''', match=r"simulation\.duration_s = 86400 / mpc\.update_period_s = 0\.5.*monte_carlo\.runs = 50.*the simulation "
+                r"takes about .* days.*the limit is"),
     C("export_existing_and_unwritable", "runaway", "export/plot functions give raw tracebacks for unwritable or "
       "existing paths", '''
     def case(tmp):
