@@ -145,7 +145,7 @@ def test_docs_nav_lists_every_page():
 
 #: The README's "Tested limits" rows and the benchmarks/bench_tested_limits.py case each comes from.
 TESTED_LIMIT_ROWS = {"behaviours": "behaviours_65k", "obstacle scenarios": "scenarios", "horizon": "horizon_100k",
-                     "Monte Carlo runs": "runs", "track length (`evaluate_tracks`)": "track_1e7"}
+                     "Monte Carlo runs": "runs_1000", "track length (`evaluate_tracks`)": "track_1e7"}
 
 
 def test_readme_tested_limits_come_from_the_committed_measurements():
