@@ -29,10 +29,9 @@ import subprocess
 import sys
 import time
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _common import environment_meta, write_results  # noqa: E402
-
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path[:0] = [os.path.dirname(os.path.abspath(__file__)), ROOT]    # this checkout's psbmpc_jax: its commit is recorded
+from _common import environment_meta, write_results  # noqa: E402
 
 SOLVE = """
 import json, numpy as np

@@ -41,6 +41,7 @@ import textwrap
 import time
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))           # this checkout's psbmpc_jax (its commit in the record), not an installed one
 MARK = "@@AUDIT@@"
 
 #: Runs in the child before the case's code: ``case(tmp, shared)`` returns a dict; a ValueError or the library's
