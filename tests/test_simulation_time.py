@@ -156,3 +156,18 @@ def test_the_command_line_prints_the_estimate_before_running(monkeypatch, tmp_pa
             main(["run", "head_on", "--runs", "3", "--out", str(tmp_path / "out"), "--no-figures"])
     assert "psbmpc-jax run: head_on: about " in err.getvalue()
     assert "3 run(s) x 81 MPC updates" in err.getvalue()
+
+
+def test_the_command_line_refuses_a_runs_override_before_the_first_run(monkeypatch, tmp_path):
+    import psbmpc_jax.sim as sim
+    from psbmpc_jax.apps.cli import main
+
+    monkeypatch.setattr(sim, "simulate", lambda *a, **k: pytest.fail("simulated"))
+    monkeypatch.setenv(simulation_time.ENV, "60")
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()), pytest.raises(SystemExit) as ex:
+        main(["run", "head_on", "--runs", "100", "--out", str(tmp_path / "out"), "--no-figures"])
+    assert ex.value.code == 2 and "Traceback" not in err.getvalue()
+    assert "head_on: simulation.duration_s = 400 / mpc.update_period_s = 5" in err.getvalue()
+    assert "--runs = 100" in err.getvalue() and "the limit is 60 s" in err.getvalue()
+    assert not (tmp_path / "out").exists()
