@@ -41,16 +41,16 @@ def base_scenario(**mpc_extra) -> dict:
 def test_off_by_default_and_the_published_terms_unchanged():
     sc = scenario_from_dict(base_scenario())
     assert sc.mpc.colregs_option == ColregsOptionSpec() and not sc.mpc.colregs_option.enabled
-    assert option_terms(sc, "psbmpc") == ()
-    assert DEFAULT_TERMS + option_terms(sc, "psbmpc") == DEFAULT_TERMS
+    assert option_terms(sc.mpc.colregs_option) == ()
+    assert DEFAULT_TERMS + option_terms(sc.mpc.colregs_option) == DEFAULT_TERMS
     off = scenario_from_dict(base_scenario(colregs_option={"enabled": False, "act_range_radii": 5}))
-    assert option_terms(off, "psbmpc") == ()
+    assert option_terms(off.mpc.colregs_option) == ()
 
 
 def test_enabled_builds_the_four_terms_with_the_file_values():
     sc = scenario_from_dict(base_scenario(colregs_option={"enabled": True, "act_range_radii": 5.5, "early": False,
                                                           "chi_apparent_deg": 45}))
-    terms = option_terms(sc, "psbmpc")
+    terms = option_terms(sc.mpc.colregs_option)
     assert [t.name for t in terms] == ["stand_on", "apparent", "hold"]
     assert terms[0].act_range_radii == 5.5 and terms[1].chi_apparent == pytest.approx(math.radians(45))
 

@@ -234,6 +234,42 @@ class GridController:
         return out
 
 
+class GroupedController:
+    """One grid-search method whose ships plan with different cost terms (a ship's own ``colregs_option``): one
+    :class:`GridController` per group of ships with the same terms, called in turn at each update; their
+    decisions are returned as one (every job of every group, the device calls and wall times added up)."""
+
+    uses_grid = True
+    splits_runs = True
+
+    def __init__(self, groups):
+        self.groups = tuple(groups)
+        if len(self.groups) < 2:
+            raise ValueError(f"GroupedController needs at least two groups of ships, got {len(self.groups)}")
+        self.ships = tuple(sorted(i for g in self.groups for i in g.ships))
+        self.method = self.groups[0].method
+
+    @property
+    def snapshots(self) -> bool:
+        return any(g.snapshots for g in self.groups)
+
+    def init(self, n_runs: int) -> None:
+        for g in self.groups:
+            g.init(n_runs)
+
+    def decide(self, obs: Observation) -> Decision:
+        parts = [g.decide(obs) for g in self.groups]
+        if any(p.sequences is not None or p.info is not None for p in parts):
+            # the refinement, the only source of per-step sequences here, takes no COLREGS option, so a method
+            # whose ships differ in their option is never refined
+            raise ValueError("GroupedController: a refined group cannot be combined with others")
+        return Decision(jobs=[j for p in parts for j in p.jobs], first=np.concatenate([p.first for p in parts]),
+                        costs=np.concatenate([p.costs for p in parts]),
+                        walls=np.concatenate([p.walls for p in parts]),
+                        device_calls=sum(p.device_calls for p in parts), wall=sum(p.wall for p in parts),
+                        snapshot=next((p.snapshot for p in parts if p.snapshot is not None), None))
+
+
 def refine_settings(mpc, settings_cls):
     """``RefineSettings`` from the scenario's ``mpc.refine`` and, where the file gives them, ``mpc.solver`` (over
     RefineSettings' default solver) and ``mpc.fis.e_cl_m`` / ``n_y`` (the refinement's FIS edge width and output
@@ -273,4 +309,4 @@ def _with_refinements(dec: Decision, refined: dict, step: float) -> Decision:
     return dataclasses.replace(dec, first=first, sequences=seq, seq_dt=float(step), info=info)
 
 
-__all__ = ["GridController", "consistent_sequences", "plan_now", "refine_settings"]
+__all__ = ["GridController", "GroupedController", "consistent_sequences", "plan_now", "refine_settings"]
