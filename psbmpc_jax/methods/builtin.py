@@ -53,8 +53,7 @@ def resolved(obj):
 def option_groups(scenario, ships, method: str) -> list:
     """``ships`` (indices of the ships that run ``method``) grouped by their resolved COLREGS option
     (:func:`~psbmpc_jax.methods.colregs_option_settings.ship_option`: a ship's own ``colregs_option`` over
-    ``mpc.colregs_option``), in ship order: ``[(ships of the group, the option's cost terms)]``, the terms empty
-    for a group with the option off.  ValueError when it is on for a ship whose ``method`` it does not extend
+    ``mpc.colregs_option``), in ship order: ``[(ships of the group, its ColregsOptionSpec)]``.  ValueError when it is on for a ship whose ``method`` it does not extend
     (docs/colregs_option.md)."""
     groups: dict = {}
     for i in ships:
@@ -65,7 +64,7 @@ def option_groups(scenario, ships, method: str) -> list:
             names = [scenario.ships[i].name for i in members]
             raise ValueError(f"mpc.colregs_option is enabled for ship(s) {names}, but method {method} does not take "
                              f"it (only {', '.join(OPTION_METHODS)} do)")
-        out.append((tuple(members), option_terms(spec)))
+        out.append((tuple(members), spec))
     return out
 
 
@@ -79,15 +78,18 @@ def option_terms(spec) -> tuple:
 
 
 def grid_controllers(scenario, ships, method: str, build):
-    """The controller of ``ships`` for a grid-search ``method``: ``build(group ships, option terms)`` (a
-    :class:`~psbmpc_jax.methods.grid.GridController`) once when every ship has the same option, else once per
-    group, combined into a :class:`~psbmpc_jax.methods.grid.GroupedController`."""
+    """The controller of ``ships`` for a grid-search ``method``: ``build(group ships, option terms, freeze)`` (a
+    :class:`~psbmpc_jax.methods.grid.GridController`; ``freeze`` its argument of that name) once when every ship
+    has the same option, else once per group, combined into a :class:`~psbmpc_jax.methods.grid.GroupedController`."""
+    def one(members, spec):
+        return build(members, option_terms(spec), spec if spec.enabled and spec.freeze_course else None)
+
     groups = option_groups(scenario, ships, method)
     if len(groups) == 1:
-        return build(groups[0][0], groups[0][1])
+        return one(*groups[0])
     from .grid import GroupedController
 
-    return GroupedController([build(members, terms) for members, terms in groups])
+    return GroupedController([one(members, spec) for members, spec in groups])
 
 
 def option_record(scenario) -> dict:
@@ -129,9 +131,9 @@ class Psbmpc(Method):
 
         from ..evaluate import DEFAULT_TERMS
 
-        return grid_controllers(scenario, ships, self.name, lambda group, option: GridController(
+        return grid_controllers(scenario, ships, self.name, lambda group, option, freeze: GridController(
             group, context.mode, scenario.mpc, context.params, context.samples, method=self.name,
-            terms=DEFAULT_TERMS + option, devices=context.devices))
+            terms=DEFAULT_TERMS + option, devices=context.devices, freeze=freeze))
 
     def record(self, scenario) -> dict:
         m = scenario.mpc      # its weights and solver configuration are mpc.params / mpc.config (recorded apart)
@@ -193,9 +195,9 @@ class Sbmpc(Method):
         from .grid import GridController
 
         published = self.terms(scenario)
-        return grid_controllers(scenario, ships, self.name, lambda group, option: GridController(
+        return grid_controllers(scenario, ships, self.name, lambda group, option, freeze: GridController(
             group, context.mode, scenario.mpc, context.params, context.samples, method=self.name, n_ps=1,
-            terms=published + option, devices=context.devices))
+            terms=published + option, devices=context.devices, freeze=freeze))
 
     def record(self, scenario) -> dict:
         return {"sbmpc": asdict(scenario.mpc.sbmpc), "grounding_term": _sbmpc_family_grounding(scenario),
@@ -230,9 +232,9 @@ class InformedSbmpc(Method):
         from .sbmpc_family import informed_terms
 
         inf = scenario.mpc.informed
-        return grid_controllers(scenario, ships, self.name, lambda group, option: GridController(
+        return grid_controllers(scenario, ships, self.name, lambda group, option, freeze: GridController(
             group, context.mode, scenario.mpc, context.params, context.samples, terms=informed_terms(inf) + option,
-            n_ps=1, method=self.name, informed=True, d_init=inf.d_init, devices=context.devices))
+            n_ps=1, method=self.name, informed=True, d_init=inf.d_init, devices=context.devices, freeze=freeze))
 
     def record(self, scenario) -> dict:
         from .sbmpc_family import informed_terms

@@ -28,6 +28,9 @@ class ColregsOptionSpec:
     Attributes:
         enabled: add the option's terms (default false: the published cost).
         stand_on, apparent, hold, early: which of the terms to add (each default true when enabled).
+        freeze_course: while some target is engaged (not past and clear), freeze the course reference at the
+            active leg's direction: the ship is commanded that direction plus its course offset, so LOS guidance
+            does not pull it back to the route before the target is past (:mod:`psbmpc_jax.methods.colregs_hold`).
         engage_radii: a target is engaged while its range is below this many R_i (default 40).
         act_cpa_radii: a nominal CPA (own-ship keeping its present course and speed, the target its velocity)
             below this many R_i is a risk of collision (default 2).
@@ -44,6 +47,7 @@ class ColregsOptionSpec:
     apparent: bool = True
     hold: bool = True
     early: bool = True
+    freeze_course: bool = False
     engage_radii: float = 40.0
     act_cpa_radii: float = 2.0
     act_range_radii: float = 4.0
@@ -71,7 +75,8 @@ _NUMBERS = {"engage_radii": (0.0, True, 1e4), "act_cpa_radii": (0.0, True, 1e4),
             "clear_radii": (0.0, True, 1e4), "chi_apparent_deg": (0.0, True, 90.0), "du_apparent": (0.0, True, 1.0),
             "K_stand_on": (0.0, False, None), "K_port": (0.0, False, None), "K_apparent": (0.0, False, None),
             "K_hold": (0.0, False, None), "K_early": (0.0, False, None)}
-_KEYS = ("enabled",) + TERM_KEYS + tuple(_NUMBERS)
+_SWITCHES = ("enabled",) + TERM_KEYS + ("freeze_course",)
+_KEYS = _SWITCHES + tuple(_NUMBERS)
 
 
 def parse_colregs_option(d, method: str | None = None, *, where: str = "mpc.colregs_option",
@@ -84,7 +89,7 @@ def parse_colregs_option(d, method: str | None = None, *, where: str = "mpc.colr
     d = as_mapping(d, w)
     check_keys(d, _KEYS, w)
     kw: dict[str, Any] = asdict(base) if base is not None else {}
-    for k in ("enabled",) + TERM_KEYS:
+    for k in _SWITCHES:
         if k in d:
             kw[k] = as_bool(d[k], f"{w}.{k}")
     for k, (lo, open_, hi) in _NUMBERS.items():
