@@ -10,6 +10,7 @@ import math
 import numpy as np
 import pytest
 
+from psbmpc_jax.costs.colregs_option import HeldPathTerm
 from psbmpc_jax.evaluate import DEFAULT_TERMS
 from psbmpc_jax.methods.base import BuildContext
 from psbmpc_jax.methods.colregs_option_settings import ColregsOptionSpec, ship_option
@@ -54,7 +55,8 @@ def test_one_ship_with_the_option_one_without_builds_the_terms_for_that_one_only
     assert isinstance(c, GroupedController) and c.ships == (0, 1)
     by_ship = {g.ships: g for g in c.groups}
     assert set(by_ship) == {(0,), (1,)}
-    assert names(by_ship[(0,)]) == OPTION_NAMES and by_ship[(0,)].terms[:4] == DEFAULT_TERMS
+    assert names(by_ship[(0,)]) == OPTION_NAMES and by_ship[(0,)].terms[:3] == DEFAULT_TERMS[:3]
+    assert isinstance(by_ship[(0,)].terms[3], HeldPathTerm)             # hold_path (default on)
     assert by_ship[(1,)].terms == DEFAULT_TERMS
     assert by_ship[(0,)].terms[0 + len(DEFAULT_TERMS)].act_range_radii == 5
     # the records: each ship its resolved option, and they differ
@@ -103,6 +105,8 @@ def test_same_option_everywhere_is_one_controller_and_records_stay_as_they_were(
     ("target", {"enabled": True}, "psbmpc_refine",
      "targets[0].colregs_option.enabled: the option extends the grid-search methods"),
     ("target", [1], "psbmpc", "targets[0].colregs_option must be a mapping"),
+    ("target", {"enabled": True, "hold_path": True}, "sbmpc",
+     "targets[0].colregs_option.hold_path: weights the path term of psbmpc; the cost of 'sbmpc' has none"),
 ])
 def test_bad_ship_sections_are_refused_naming_the_field(where, section, colav, message):
     kw = {"own": section} if where == "own" else {"target": section}

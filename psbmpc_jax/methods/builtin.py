@@ -77,6 +77,16 @@ def option_terms(spec) -> tuple:
     return build(spec)
 
 
+def held_path(terms, spec) -> tuple:
+    """``terms`` with the path term weighted off while engaged when the option has ``hold_path``
+    (:func:`psbmpc_jax.costs.colregs_option.with_held_path`); unchanged when the option is off."""
+    if not spec.enabled:
+        return tuple(terms)
+    from ..costs.colregs_option import with_held_path
+
+    return with_held_path(terms, spec)
+
+
 def grid_controllers(scenario, ships, method: str, build):
     """The controller of ``ships`` for a grid-search ``method``: ``build(group ships, option terms, freeze)`` (a
     :class:`~psbmpc_jax.methods.grid.GridController`; ``freeze`` its argument of that name) once when every ship
@@ -133,7 +143,8 @@ class Psbmpc(Method):
 
         return grid_controllers(scenario, ships, self.name, lambda group, option, freeze: GridController(
             group, context.mode, scenario.mpc, context.params, context.samples, method=self.name,
-            terms=DEFAULT_TERMS + option, devices=context.devices, freeze=freeze))
+            terms=held_path(DEFAULT_TERMS, ship_option(scenario, group[0])) + option, devices=context.devices,
+            freeze=freeze))
 
     def record(self, scenario) -> dict:
         m = scenario.mpc      # its weights and solver configuration are mpc.params / mpc.config (recorded apart)

@@ -28,6 +28,9 @@ class ColregsOptionSpec:
     Attributes:
         enabled: add the option's terms (default false: the published cost).
         stand_on, apparent, hold, early: which of the terms to add (each default true when enabled).
+        hold_path: while some target is engaged and none is one to stand on for, weight off the course-deviation part (K_chi_port, K_chi_stbd)
+            of the path term H_p, so holding an avoidance offset costs nothing (``psbmpc`` only: the other
+            methods' costs have their own manoeuvring terms, left as published).
         freeze_course: while some target is engaged (not past and clear), freeze the course reference at the
             active leg's direction: the ship is commanded that direction plus its course offset, so LOS guidance
             does not pull it back to the route before the target is past (:mod:`psbmpc_jax.methods.colregs_hold`).
@@ -47,6 +50,7 @@ class ColregsOptionSpec:
     apparent: bool = True
     hold: bool = True
     early: bool = True
+    hold_path: bool = True
     freeze_course: bool = False
     engage_radii: float = 40.0
     act_cpa_radii: float = 2.0
@@ -75,7 +79,9 @@ _NUMBERS = {"engage_radii": (0.0, True, 1e4), "act_cpa_radii": (0.0, True, 1e4),
             "clear_radii": (0.0, True, 1e4), "chi_apparent_deg": (0.0, True, 90.0), "du_apparent": (0.0, True, 1.0),
             "K_stand_on": (0.0, False, None), "K_port": (0.0, False, None), "K_apparent": (0.0, False, None),
             "K_hold": (0.0, False, None), "K_early": (0.0, False, None)}
-_SWITCHES = ("enabled",) + TERM_KEYS + ("freeze_course",)
+_SWITCHES = ("enabled",) + TERM_KEYS + ("hold_path", "freeze_course")
+#: Methods whose cost holds the PSB-MPC path term H_p, which ``hold_path`` weights.
+HOLD_PATH_METHODS = ("psbmpc",)
 _KEYS = _SWITCHES + tuple(_NUMBERS)
 
 
@@ -103,6 +109,9 @@ def parse_colregs_option(d, method: str | None = None, *, where: str = "mpc.colr
         what = "mpc.method" if where == "mpc.colregs_option" else "the ship's method (colav)"
         raise ValueError(f"{w}.enabled: the option extends the grid-search methods {', '.join(OPTION_METHODS)}; "
                          f"{what} is {method!r} (its cost would not see the option)")
+    if spec.enabled and d.get("hold_path") is True and method is not None and method not in HOLD_PATH_METHODS:
+        raise ValueError(f"{w}.hold_path: weights the path term of {', '.join(HOLD_PATH_METHODS)}; the cost of "
+                         f"{method!r} has none (set it false or leave it out)")
     if spec.enabled and spec.act_range_radii >= spec.engage_radii:
         raise ValueError(f"{w}.act_range_radii ({spec.act_range_radii:g}) must be below engage_radii "
                          f"({spec.engage_radii:g})")
