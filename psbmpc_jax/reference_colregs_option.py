@@ -14,7 +14,8 @@ def _wrap(a: float) -> float:
 
 def encounter(p0, chi0, u0, obstacles, *, engage, act_cpa, act_range, clear):
     """Flags of every obstacle: ``obstacles`` is a list of ``(x, y, vx, vy, radius, valid)``.  Returns a list of
-    dicts with ``engaged``, ``stand_on_hold``, ``port_act``, ``give_way`` (Python bools)."""
+    dicts with ``engaged``, ``stand_on`` (engaged, and one to stand on for), ``stand_on_hold``, ``port_act``,
+    ``give_way`` (Python bools)."""
     out = []
     d22, d67, d112 = (math.radians(a) for a in (22.5, 67.5, 112.5))
     v0 = (u0 * math.cos(chi0), u0 * math.sin(chi0))
@@ -41,7 +42,7 @@ def encounter(p0, chi0, u0, obstacles, *, engage, act_cpa, act_range, clear):
         risk = closing and d_cpa < act_cpa * radius
         may_act = risk and rng < act_range * radius
         stand_on = engaged and (cross_port or overtaken) and not overtaking
-        out.append({"engaged": engaged, "stand_on_hold": stand_on and not may_act,
+        out.append({"engaged": engaged, "stand_on": stand_on, "stand_on_hold": stand_on and not may_act,
                     "port_act": engaged and cross_port and not overtaking and may_act,
                     "give_way": engaged and risk and (head_on or cross_stbd or overtaking)})
     return out

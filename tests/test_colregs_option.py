@@ -41,16 +41,16 @@ def base_scenario(**mpc_extra) -> dict:
 def test_off_by_default_and_the_published_terms_unchanged():
     sc = scenario_from_dict(base_scenario())
     assert sc.mpc.colregs_option == ColregsOptionSpec() and not sc.mpc.colregs_option.enabled
-    assert option_terms(sc, "psbmpc") == ()
-    assert DEFAULT_TERMS + option_terms(sc, "psbmpc") == DEFAULT_TERMS
+    assert option_terms(sc.mpc.colregs_option) == ()
+    assert DEFAULT_TERMS + option_terms(sc.mpc.colregs_option) == DEFAULT_TERMS
     off = scenario_from_dict(base_scenario(colregs_option={"enabled": False, "act_range_radii": 5}))
-    assert option_terms(off, "psbmpc") == ()
+    assert option_terms(off.mpc.colregs_option) == ()
 
 
 def test_enabled_builds_the_four_terms_with_the_file_values():
     sc = scenario_from_dict(base_scenario(colregs_option={"enabled": True, "act_range_radii": 5.5, "early": False,
                                                           "chi_apparent_deg": 45}))
-    terms = option_terms(sc, "psbmpc")
+    terms = option_terms(sc.mpc.colregs_option)
     assert [t.name for t in terms] == ["stand_on", "apparent", "hold"]
     assert terms[0].act_range_radii == 5.5 and terms[1].chi_apparent == pytest.approx(math.radians(45))
 
@@ -105,7 +105,7 @@ def jax_flags(p0, chi0, u0, obs):
 
 def test_encounter_flags_equal_the_oracle_over_random_geometries():
     rng = np.random.default_rng(0)
-    seen = {k: 0 for k in ("engaged", "stand_on_hold", "port_act", "give_way")}
+    seen = {k: 0 for k in ("engaged", "stand_on", "stand_on_hold", "port_act", "give_way")}
     for _ in range(150):
         p0, chi0, u0, obs = random_encounters(rng, 6)
         want = ref.encounter(p0, chi0, u0, [tuple(o) for o in obs], **THRESH)
@@ -224,8 +224,9 @@ def test_controllers_get_the_terms_only_when_enabled():
     assert off.terms == DEFAULT_TERMS and "colregs_option" not in REGISTRY["psbmpc"].record(sc)
     on_sc = scenario_from_dict(base_scenario(colregs_option={"enabled": True}))
     on = build_controllers(on_sc, ctx).controllers[0]
-    assert on.terms[:4] == DEFAULT_TERMS and [t.name for t in on.terms[4:]] == ["stand_on", "apparent", "hold",
-                                                                                  "early"]
+    # the path term weighted off while engaged (hold_path, default on): tests/test_colregs_hold.py
+    assert on.terms[:3] == DEFAULT_TERMS[:3] and isinstance(on.terms[3], co.HeldPathTerm)
+    assert [t.name for t in on.terms[4:]] == ["stand_on", "apparent", "hold", "early"]
     assert REGISTRY["psbmpc"].record(on_sc)["colregs_option"]["enabled"] is True
     # every method the option extends records it when on, and only then
     for name in ("psbmpc", "sbmpc", "psbmpc_2020", "informed_sbmpc"):

@@ -43,11 +43,13 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from types import SimpleNamespace
 
 import jax.numpy as jnp
 
 from ..numerics import wrap_angle
 from .base import Context, TermValue, cost_term
+from .path import PathTerm, path_cost
 
 D22 = math.radians(22.5)
 D67 = math.radians(67.5)
@@ -57,7 +59,8 @@ D112 = math.radians(112.5)
 def encounter(p0, chi0, u0, pi_, vi, radius, valid, *, engage, act_cpa, act_range, clear):
     """Per-obstacle flags ``[O]`` of the encounter now: own-ship position ``p0 (x, y)``, course, speed; obstacle
     positions ``pi_ (x [O], y [O])`` and velocities ``vi (vx [O], vy [O])``; ``radius [O]``; ``valid [O]``.
-    Returns a dict of boolean arrays: ``engaged``, ``stand_on_hold``, ``port_act``, ``give_way``."""
+    Returns a dict of boolean arrays: ``engaged``, ``stand_on`` (engaged, and one to stand on for),
+    ``stand_on_hold``, ``port_act``, ``give_way``."""
     dx, dy = pi_[0] - p0[0], pi_[1] - p0[1]
     v0x, v0y = u0 * jnp.cos(chi0), u0 * jnp.sin(chi0)
     dvx, dvy = vi[0] - v0x, vi[1] - v0y
@@ -83,7 +86,7 @@ def encounter(p0, chi0, u0, pi_, vi, radius, valid, *, engage, act_cpa, act_rang
     stand_on = engaged & (cross_port | overtaken) & ~overtaking
     # Rule 17(c) is a crossing rule: an overtaking target dead astern has no defined side (β = ±180° flips with noise)
     port_act = engaged & cross_port & ~overtaking & may_act
-    return {"engaged": engaged, "stand_on_hold": stand_on & ~may_act, "port_act": port_act,
+    return {"engaged": engaged, "stand_on": stand_on, "stand_on_hold": stand_on & ~may_act, "port_act": port_act,
             "give_way": engaged & risk & (head_on | cross_stbd | overtaking)}
 
 
@@ -214,6 +217,45 @@ class EarlyTerm(_Thresholds):
         return TermValue(early_cost(ctx.offsets, give_way, chi_a=self.chi_apparent, K_early=self.K_early))
 
 
+def held_path_cost(offsets, last, params, engaged):
+    """``[B]``: H_p (:func:`psbmpc_jax.costs.path.path_cost`) with its course-deviation weights K_chi_port and
+    K_chi_stbd set to 0 while ``engaged`` (scalar bool; :class:`HeldPathTerm`: some target engaged and none to
+    stand on for): holding a course offset costs nothing then, so the planner has no reason to return to the
+    route before the target is past and clear."""
+    weights = SimpleNamespace(**{k: getattr(params, k) for k in PathTerm.PARAMS})
+    weights.K_chi_port = jnp.where(engaged, 0.0, params.K_chi_port)
+    weights.K_chi_stbd = jnp.where(engaged, 0.0, params.K_chi_stbd)
+    return path_cost(offsets, last, weights)
+
+
+@cost_term
+class HeldPathTerm(_Thresholds):
+    """The path term H_p (column ``path``) with its course-deviation part weighted off while some target is engaged
+    and none is one to stand on for (``hold_path``; replaces :class:`~psbmpc_jax.costs.path.PathTerm`, same
+    parameters).  A stand-on vessel keeps the published weights: its late action (Rule 17(b)) is best small and
+    brief, and without them its return to the route came late and as one port turn the evaluator penalises."""
+
+    name = "path"
+    PARAMS = PathTerm.PARAMS
+    smooth = True
+
+    def __call__(self, ctx: Context, params, config, samples) -> TermValue:
+        e = context_encounter(ctx, self)
+        held = jnp.any(e["engaged"]) & ~jnp.any(e["stand_on"])
+        return TermValue(held_path_cost(ctx.offsets, ctx.last_offsets, params, held))
+
+
+def with_held_path(terms, spec) -> tuple:
+    """``terms`` with the path term replaced by :class:`HeldPathTerm` (the spec's thresholds) when the option is
+    enabled with ``hold_path``; unchanged otherwise (and for a cost without :class:`PathTerm`)."""
+    if not (spec.enabled and spec.hold_path):
+        return tuple(terms)
+    held = HeldPathTerm(engage_radii=spec.engage_radii, act_cpa_radii=spec.act_cpa_radii,
+                        act_range_radii=spec.act_range_radii, clear_radii=spec.clear_radii,
+                        chi_apparent=spec.chi_apparent)
+    return tuple(held if isinstance(t, PathTerm) else t for t in terms)
+
+
 TERM_CLASSES: dict[str, type] = {"stand_on": StandOnTerm, "apparent": ApparentTerm, "hold": HoldTerm, "early": EarlyTerm}
 
 
@@ -233,4 +275,5 @@ def option_terms(spec) -> tuple:
 
 
 __all__ = ["encounter", "bump", "step_down", "stand_on_cost", "apparent_cost", "hold_cost", "early_cost",
-           "StandOnTerm", "ApparentTerm", "HoldTerm", "EarlyTerm", "TERM_CLASSES", "option_terms"]
+           "StandOnTerm", "ApparentTerm", "HoldTerm", "EarlyTerm", "TERM_CLASSES", "option_terms", "held_path_cost",
+           "HeldPathTerm", "with_held_path"]

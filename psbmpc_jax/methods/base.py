@@ -174,7 +174,7 @@ class Decision:
         snapshot: the full evaluation of the job :attr:`Observation.keep` asked for (a
             :class:`~psbmpc_jax.packing.PlanResult`), or None.
         commands: absolute commands ``(U, chi)`` ``[n, 2]`` [m/s, rad] applied as they are (not on top of LOS
-            guidance) until the next update, or None.
+            guidance) until the next update, or None; a NaN row: that job applies ``first`` over LOS guidance.
     """
 
     jobs: list

@@ -26,7 +26,8 @@ import dataclasses
 from dataclasses import asdict
 
 from .base import BuildContext, DesignShip, Method
-from .colregs_option_settings import OPTION_METHODS, ColregsOptionSpec, parse_colregs_option
+from .colregs_option_settings import (OPTION_METHODS, ColregsOptionSpec, option_in_use, parse_colregs_option,
+                                      ship_option)
 from .informed_settings import InformedSpec, parse_informed
 from .refine_settings import RefineSpec, parse_refine
 from .registry import SectionContext, register, register_section
@@ -49,25 +50,72 @@ def resolved(obj):
     return obj
 
 
-def option_terms(scenario, method: str) -> tuple:
-    """The COLREGS option's cost terms (``mpc.colregs_option``; empty when it is off) for ``method``; ValueError
-    when it is on and ``method`` is not one of the methods it extends (docs/colregs_option.md)."""
-    spec = scenario.mpc.colregs_option
+def option_groups(scenario, ships, method: str) -> list:
+    """``ships`` (indices of the ships that run ``method``) grouped by their resolved COLREGS option
+    (:func:`~psbmpc_jax.methods.colregs_option_settings.ship_option`: a ship's own ``colregs_option`` over
+    ``mpc.colregs_option``), in ship order: ``[(ships of the group, its ColregsOptionSpec)]``.  ValueError when it is on for a ship whose ``method`` it does not extend
+    (docs/colregs_option.md)."""
+    groups: dict = {}
+    for i in ships:
+        groups.setdefault(ship_option(scenario, i), []).append(int(i))
+    out = []
+    for spec, members in groups.items():
+        if spec.enabled and method not in OPTION_METHODS:
+            names = [scenario.ships[i].name for i in members]
+            raise ValueError(f"mpc.colregs_option is enabled for ship(s) {names}, but method {method} does not take "
+                             f"it (only {', '.join(OPTION_METHODS)} do)")
+        out.append((tuple(members), spec))
+    return out
+
+
+def option_terms(spec) -> tuple:
+    """The cost terms of a resolved option (empty when it is off)."""
     if not spec.enabled:
         return ()
-    if method not in OPTION_METHODS:
-        raise ValueError(f"mpc.colregs_option is enabled, but method {method} does not take it (only "
-                         f"{', '.join(OPTION_METHODS)} do)")
     from ..costs.colregs_option import option_terms as build
 
     return build(spec)
 
 
+def held_path(terms, spec) -> tuple:
+    """``terms`` with the path term weighted off while engaged when the option has ``hold_path``
+    (:func:`psbmpc_jax.costs.colregs_option.with_held_path`); unchanged when the option is off."""
+    if not spec.enabled:
+        return tuple(terms)
+    from ..costs.colregs_option import with_held_path
+
+    return with_held_path(terms, spec)
+
+
+def grid_controllers(scenario, ships, method: str, build):
+    """The controller of ``ships`` for a grid-search ``method``: ``build(group ships, option terms, freeze)`` (a
+    :class:`~psbmpc_jax.methods.grid.GridController`; ``freeze`` its argument of that name) once when every ship
+    has the same option, else once per group, combined into a :class:`~psbmpc_jax.methods.grid.GroupedController`."""
+    def one(members, spec):
+        return build(members, option_terms(spec), spec if spec.enabled and spec.freeze_course else None)
+
+    groups = option_groups(scenario, ships, method)
+    if len(groups) == 1:
+        return one(*groups[0])
+    from .grid import GroupedController
+
+    return GroupedController([one(members, spec) for members, spec in groups])
+
+
 def option_record(scenario) -> dict:
-    """The COLREGS option's settings for a method's record: ``{"colregs_option": ...}`` when it is on, else
-    nothing (the records of the published costs stay as they were)."""
+    """The COLREGS option's settings for a method's record: ``{"colregs_option": ...}`` (``mpc.colregs_option``,
+    the default of every ship) when it is on, else nothing (the records of the published costs stay as they
+    were).  Each ship's resolved option is in the ships' records (:func:`ship_option_record`)."""
     spec = scenario.mpc.colregs_option
     return {"colregs_option": asdict(spec)} if spec.enabled else {}
+
+
+def ship_option_record(scenario, i: int) -> dict:
+    """Ship ``i``'s resolved option for the ships' records: ``{"colregs_option": ...}`` when the option is on for
+    some ship of the scenario and ship ``i`` runs a method it extends (enabled or not), else nothing."""
+    if scenario.ships[i].colav not in OPTION_METHODS or not option_in_use(scenario):
+        return {}
+    return {"colregs_option": asdict(ship_option(scenario, i))}
 
 
 def _sbmpc_family_grounding(scenario) -> bool:
@@ -93,8 +141,10 @@ class Psbmpc(Method):
 
         from ..evaluate import DEFAULT_TERMS
 
-        return GridController(ships, context.mode, scenario.mpc, context.params, context.samples, method=self.name,
-                              terms=DEFAULT_TERMS + option_terms(scenario, self.name), devices=context.devices)
+        return grid_controllers(scenario, ships, self.name, lambda group, option, freeze: GridController(
+            group, context.mode, scenario.mpc, context.params, context.samples, method=self.name,
+            terms=held_path(DEFAULT_TERMS, ship_option(scenario, group[0])) + option, devices=context.devices,
+            freeze=freeze))
 
     def record(self, scenario) -> dict:
         m = scenario.mpc      # its weights and solver configuration are mpc.params / mpc.config (recorded apart)
@@ -120,7 +170,7 @@ class Refined(Method):
         return self.base.design_for(mpc)
 
     def build(self, scenario, ships, context: BuildContext):
-        option_terms(scenario, self.name)          # refused when mpc.colregs_option is on (not in the refinement)
+        option_groups(scenario, ships, self.name)   # refused when the option is on for a ship (not in the refinement)
         controller = self.base.build(scenario, ships, context)
         controller.enable_refinement()
         controller.method = self.name
@@ -147,16 +197,18 @@ class Sbmpc(Method):
     design_ship = DesignShip(30.0, 9.0, "Tengesdal, Brekke & Johansen 2020, Table 1 (30 m vessels at 9 m/s)")
 
     def terms(self, scenario):
+        """The method's published cost terms (the COLREGS option's are added per group of ships in :meth:`build`)."""
         from .sbmpc_family import sbmpc_terms
 
-        return (sbmpc_terms(scenario.mpc.sbmpc, with_grounding=_sbmpc_family_grounding(scenario))
-                + option_terms(scenario, self.name))
+        return sbmpc_terms(scenario.mpc.sbmpc, with_grounding=_sbmpc_family_grounding(scenario))
 
     def build(self, scenario, ships, context: BuildContext):
         from .grid import GridController
 
-        return GridController(ships, context.mode, scenario.mpc, context.params, context.samples, method=self.name,
-                              n_ps=1, terms=self.terms(scenario), devices=context.devices)
+        published = self.terms(scenario)
+        return grid_controllers(scenario, ships, self.name, lambda group, option, freeze: GridController(
+            group, context.mode, scenario.mpc, context.params, context.samples, method=self.name, n_ps=1,
+            terms=published + option, devices=context.devices, freeze=freeze))
 
     def record(self, scenario) -> dict:
         return {"sbmpc": asdict(scenario.mpc.sbmpc), "grounding_term": _sbmpc_family_grounding(scenario),
@@ -175,8 +227,7 @@ class Psbmpc2020(Sbmpc):
     def terms(self, scenario):
         from .sbmpc_family import psbmpc2020_terms
 
-        return (psbmpc2020_terms(scenario.mpc.sbmpc, with_grounding=_sbmpc_family_grounding(scenario))
-                + option_terms(scenario, self.name))
+        return psbmpc2020_terms(scenario.mpc.sbmpc, with_grounding=_sbmpc_family_grounding(scenario))
 
 
 class InformedSbmpc(Method):
@@ -192,10 +243,9 @@ class InformedSbmpc(Method):
         from .sbmpc_family import informed_terms
 
         inf = scenario.mpc.informed
-        return GridController(ships, context.mode, scenario.mpc, context.params, context.samples,
-                              terms=informed_terms(inf) + option_terms(scenario, self.name), n_ps=1,
-                              method=self.name, informed=True, d_init=inf.d_init,
-                              devices=context.devices)
+        return grid_controllers(scenario, ships, self.name, lambda group, option, freeze: GridController(
+            group, context.mode, scenario.mpc, context.params, context.samples, terms=informed_terms(inf) + option,
+            n_ps=1, method=self.name, informed=True, d_init=inf.d_init, devices=context.devices, freeze=freeze))
 
     def record(self, scenario) -> dict:
         from .sbmpc_family import informed_terms

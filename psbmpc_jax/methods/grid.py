@@ -134,15 +134,17 @@ class GridController:
     ``terms``, obstacles predicted with ``n_ps`` scenarios (None: ``mpc.n_ps``; 1: straight lines); ``refine_ships``
     are refined after the search.  ``samples``: the estimator's table.  ``informed``: obstacles along the routes
     they shared (Informed SB-MPC); ``d_init``: the planner rests, applying (1, 0), while no other ship is within
-    it."""
+    it.  ``freeze``: the COLREGS option (a ``ColregsOptionSpec``) whose held course reference applies
+    (:mod:`psbmpc_jax.methods.colregs_hold`; None: offsets over LOS guidance throughout)."""
 
     uses_grid = True                 # packs the chart's distance grid in grounding_mode "grid"
     splits_runs = True               # its vmapped batch is split over BuildContext.devices
 
     def __init__(self, ships, mode: str, mpc, params, samples, refine_ships=(), terms=DEFAULT_TERMS,
                  n_ps: int | None = None, method: str = "psbmpc", informed: bool = False,
-                 d_init: float | None = None, devices=None):
+                 d_init: float | None = None, devices=None, freeze=None):
         self.ships, self.mpc, self.method = tuple(int(i) for i in ships), mpc, method
+        self.freeze, self.d_safe = freeze, None if freeze is None else float(params.d_safe)
         self.refine_ships = tuple(int(i) for i in refine_ships)
         self.n_ps = n_ps
         self.informed, self.d_init = informed, d_init
@@ -209,6 +211,13 @@ class GridController:
         mpc, config = self.mpc, self.mpc.config
         keep_job = obs.keep if self.snapshots else None
         situations = [obs.situation(r, i, n_ps=self.n_ps, informed=self.informed) for r, i in jobs]
+        refs = np.full(len(jobs), np.nan)            # the frozen course reference of a held job [rad]
+        if self.freeze is not None:
+            from .colregs_hold import engaged_now, frozen_reference
+
+            for n, s in enumerate(situations):
+                if engaged_now(s, self.d_safe, self.freeze):
+                    situations[n], refs[n] = frozen_reference(s)
         packed = [pack(s, mpc.behaviours, config, grid=obs.grid) for s in situations]
         states = [PlannerState((obs.offsets[r, i, 0], obs.offsets[r, i, 1]), self._warm_start(obs, r, i))
                   for r, i in jobs]
@@ -224,14 +233,60 @@ class GridController:
         if kept is not None and keep is not None:      # kept: the keep job's arrays
             snapshot = unpack(kept, situations[keep], mpc.behaviours, wall,
                               per_polygon=config.grounding_mode == "exact", names=COST_NAMES)
+        commands = None
+        if np.any(np.isfinite(refs)):                # held jobs: absolute (u U_d, α + χ); the others NaN (LOS + χ)
+            u_d = np.array([s.own_ship.U_d for s in situations])
+            commands = np.column_stack([first[:, 0] * u_d, np.angle(np.exp(1j * (refs + first[:, 1])))])
         out = Decision(jobs=jobs, first=first, costs=np.asarray(costs, float), walls=np.asarray(walls, float),
-                       device_calls=self.solver.device_calls(len(jobs), len(refined)), wall=wall, snapshot=snapshot)
+                       device_calls=self.solver.device_calls(len(jobs), len(refined)), wall=wall, snapshot=snapshot,
+                       commands=commands)
         if refined:
             out = _with_refinements(out, refined, mpc.config.dt)
             if self.previous_start:
                 for n, ref in refined.items():
                     self._previous[jobs[n]] = (obs.t, np.asarray(ref.controls, float).reshape(-1, 2))
         return out
+
+
+class GroupedController:
+    """One grid-search method whose ships plan with different cost terms (a ship's own ``colregs_option``): one
+    :class:`GridController` per group of ships with the same terms, called in turn at each update; their
+    decisions are returned as one (every job of every group, the device calls and wall times added up)."""
+
+    uses_grid = True
+    splits_runs = True
+
+    def __init__(self, groups):
+        self.groups = tuple(groups)
+        if len(self.groups) < 2:
+            raise ValueError(f"GroupedController needs at least two groups of ships, got {len(self.groups)}")
+        self.ships = tuple(sorted(i for g in self.groups for i in g.ships))
+        self.method = self.groups[0].method
+
+    @property
+    def snapshots(self) -> bool:
+        return any(g.snapshots for g in self.groups)
+
+    def init(self, n_runs: int) -> None:
+        for g in self.groups:
+            g.init(n_runs)
+
+    def decide(self, obs: Observation) -> Decision:
+        parts = [g.decide(obs) for g in self.groups]
+        if any(p.sequences is not None or p.info is not None for p in parts):
+            # the refinement, the only source of per-step sequences here, takes no COLREGS option, so a method
+            # whose ships differ in their option is never refined
+            raise ValueError("GroupedController: a refined group cannot be combined with others")
+        commands = None
+        if any(p.commands is not None for p in parts):
+            commands = np.concatenate([p.commands if p.commands is not None else np.full((len(p.jobs), 2), np.nan)
+                                       for p in parts])
+        return Decision(jobs=[j for p in parts for j in p.jobs], first=np.concatenate([p.first for p in parts]),
+                        costs=np.concatenate([p.costs for p in parts]),
+                        walls=np.concatenate([p.walls for p in parts]),
+                        device_calls=sum(p.device_calls for p in parts), wall=sum(p.wall for p in parts),
+                        snapshot=next((p.snapshot for p in parts if p.snapshot is not None), None),
+                        commands=commands)
 
 
 def refine_settings(mpc, settings_cls):
@@ -273,4 +328,4 @@ def _with_refinements(dec: Decision, refined: dict, step: float) -> Decision:
     return dataclasses.replace(dec, first=first, sequences=seq, seq_dt=float(step), info=info)
 
 
-__all__ = ["GridController", "consistent_sequences", "plan_now", "refine_settings"]
+__all__ = ["GridController", "GroupedController", "consistent_sequences", "plan_now", "refine_settings"]

@@ -135,7 +135,8 @@ def scenario_from_dict(data: dict, base_dir=None, source: str | None = None, *, 
                                setting="evaluation.sample_interval_s",
                                hint="Use a larger evaluation.sample_interval_s (default 1 s)")
 
-    ctx = dict(chart=chart, duration=duration, params=mpc.params, origin_latlon=origin_ll, method=mpc.method)
+    ctx = dict(chart=chart, duration=duration, params=mpc.params, origin_latlon=origin_ll, method=mpc.method,
+               colregs_option=mpc.colregs_option)
     own = read_ship(data["own_ship"], "own_ship", own=True, ctx=ctx)
     targets = tuple(read_ship(t, f"targets[{i}]", own=False, ctx=ctx) for i, t in enumerate(tl))
     seen = {own.name: "own_ship"}

@@ -4,6 +4,7 @@ and the names and limits the loader checks against."""
 from __future__ import annotations
 import pathlib
 from dataclasses import dataclass, field
+from typing import Any
 import numpy as np
 from ..evaltool.params import EvalParams
 from ..methods.registry import REGISTRY, SECTIONS
@@ -57,6 +58,9 @@ class ShipSpec:
         leg_speeds: optional nominal speed per leg of ``waypoints`` [m/s] (``leg_speeds_mps``; after the last
             waypoint the last leg's); shared with the route.  None: ``U_d`` / ``speed_plan``.
         rule18_role: its COLREGS Rule-18 role, one of :data:`RULE18_ROLES` (``pdv``: power-driven, no priority).
+        colregs_option: the ship's own COLREGS option (a
+            :class:`~psbmpc_jax.methods.colregs_option_settings.ColregsOptionSpec`: its ``colregs_option`` section
+            over ``mpc.colregs_option``), or None: ``mpc.colregs_option`` (docs/colregs_option.md).
         motion_model: ``"kinematic"`` (the planner's model with autopilot lags ``T_chi``, ``T_U``) or ``"3dof"``
             (Fossen's manoeuvring model, :mod:`psbmpc_jax.sim.vessel3dof`, preset ``vessel_model``).
 
@@ -83,6 +87,7 @@ class ShipSpec:
     rule18_role: str = "pdv"
     motion_model: str = "kinematic"
     vessel_model: str | None = None
+    colregs_option: Any = None
 
     @property
     def is_point(self) -> bool:

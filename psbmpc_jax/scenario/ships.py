@@ -14,6 +14,7 @@ from ..geo import LATLON_MAX_DISTANCE_M, check_latlon, latlon_to_ned
 
 from ..config import as_bool, as_choice, as_mapping, as_number, as_point, as_points, as_string, check_keys, course_rad, direction_of, one_of, read_speed
 from .mpc import ship_colav
+from ..methods.colregs_option_settings import parse_ship_option
 from ..methods.smooth_settings import SMOOTH_METHODS
 from .schema import DEFAULT_ROUTE_MIN_M, MOTION_MODELS, RULE18_ROLES, ShipSpec, VESSEL_MODELS
 
@@ -21,7 +22,7 @@ from .schema import DEFAULT_ROUTE_MIN_M, MOTION_MODELS, RULE18_ROLES, ShipSpec, 
 _SHIP_KEYS = ("name", "position_m", "position_utm", "position_latlon", "course_deg", "speed_mps", "speed_kn",
               "nominal_speed_mps", "nominal_speed_kn", "waypoints_m", "waypoints_utm", "waypoints_latlon", "speed_plan", "length_m", "width_m", "T_chi_s",
               "T_U_s", "lookahead_m", "R_a_m", "colav", "allow_route_over_land", "shares_route", "rule18_role",
-              "motion_model", "vessel_model", "leg_speeds_mps")
+              "motion_model", "vessel_model", "leg_speeds_mps", "colregs_option")
 
 
 _PLAN_KEYS = ("t_s", "speed_mps", "speed_kn")
@@ -180,6 +181,9 @@ def read_ship(d, where: str, *, own: bool, ctx: dict) -> ShipSpec:
                          f"{spec.length:g} and {spec.width:g}")
     ctx.setdefault("default_routes", []).append(wkey is None)
     out = _exchange_and_motion(d, where)
+    if "colregs_option" in d:
+        out["colregs_option"] = parse_ship_option(d["colregs_option"], colav, f"{where}.colregs_option",
+                                                  ctx.get("colregs_option"))
     if "leg_speeds_mps" in d:
         ls = d["leg_speeds_mps"]
         if wkey is None:

@@ -58,7 +58,10 @@ def _clean(obj, digits: int | None = None):
 
 
 def scenario_info(sc) -> dict:
-    """The settings a reader needs to reproduce the numbers (SI units)."""
+    """The settings a reader needs to reproduce the numbers (SI units); a ship's resolved COLREGS option is in its
+    entry of ``ships`` when the option is on for some ship (docs/colregs_option.md)."""
+    from ..methods.builtin import ship_option_record
+
     p = sc.mpc.params
     return {
         "name": sc.name, "description": sc.description, "source": sc.source,
@@ -72,8 +75,9 @@ def scenario_info(sc) -> dict:
         "chart": sc.chart_info,
         "ships": [{"name": s.name, "colav": s.colav, "length_m": s.length, "width_m": s.width,
                    "U_d_mps": s.U_d, "start_m": s.position, "course_deg": math.degrees(s.course),
-                   "T_chi_s": s.T_chi, "T_U_s": s.T_U, "lookahead_m": s.lookahead, "R_a_m": s.R_a}
-                  for s in sc.ships],
+                   "T_chi_s": s.T_chi, "T_U_s": s.T_U, "lookahead_m": s.lookahead, "R_a_m": s.R_a,
+                   **ship_option_record(sc, i)}
+                  for i, s in enumerate(sc.ships)],
     }
 
 

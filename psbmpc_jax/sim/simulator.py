@@ -439,9 +439,10 @@ class _ClosedLoop:
                 if i == 0 and d.info is not None:
                     for name in INFO_NAMES:
                         self.colav_info[name][r, m] = d.info[name][n]
-            if d.commands is not None:
-                for n, (r, i) in enumerate(d.jobs):
-                    self.absolute[r, i] = True
+            for n, (r, i) in enumerate(d.jobs):        # a NaN row (or no commands): offsets over LOS guidance
+                held = d.commands is not None and bool(np.all(np.isfinite(d.commands[n])))
+                self.absolute[r, i] = held
+                if held:
                     self.cmd_U[r, i], self.cmd_chi[r, i] = d.commands[n]
             ships = sorted({i for _, i in d.jobs})
             for i in ships:
