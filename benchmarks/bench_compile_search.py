@@ -9,7 +9,12 @@ tests' ``--xla_backend_optimization_level=0``) and ``o0_legacy`` (also ``--xla_c
 Rounds are interleaved: every (flags, search) pair once per round.  Recorded per point: median / min / max of
 the trace+lower seconds and of the compile seconds, and the StableHLO line count.
 
-Usage: PYTHONPATH=. python benchmarks/bench_compile_search.py [--rounds 2] [--n-cbs 1014] [--out DIR]
+``--baseline DIR`` (a checkout of another commit, e.g. ``git worktree add /tmp/old COMMIT``) measures every
+point with that tree's package too, in the same rounds (``tree``: ``new`` / ``old``): a before/after in one
+interleaved run.  ``--flags`` and ``--searches`` pick a subset (comma-separated).
+
+Usage: PYTHONPATH=. python benchmarks/bench_compile_search.py [--rounds 2] [--n-cbs 1014] [--baseline DIR]
+[--flags default,o0] [--searches culled,bounded] [--out DIR]
 """
 
 from __future__ import annotations
@@ -54,6 +59,9 @@ def main(argv=None) -> int:
     ap.add_argument("--rounds", type=int, default=2)
     ap.add_argument("--n-cbs", type=int, default=1014)
     ap.add_argument("--out", default=os.path.join(os.path.dirname(os.path.abspath(__file__)), "results"))
+    ap.add_argument("--baseline", default=None, help="checkout of another commit, measured in the same rounds")
+    ap.add_argument("--flags", default=",".join(FLAGS), help="comma-separated subset of " + ", ".join(FLAGS))
+    ap.add_argument("--searches", default=",".join(SEARCHES), help="comma-separated subset of " + ", ".join(SEARCHES))
     ap.add_argument("--child", choices=SEARCHES, help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
     if a.rounds < 1:
@@ -64,22 +72,35 @@ def main(argv=None) -> int:
     sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
     from _common import environment_meta, write_results
 
-    runs: dict = {(f, s): [] for f in FLAGS for s in SEARCHES}
+    flag_sets, searches = a.flags.split(","), a.searches.split(",")
+    for name, value, allowed in (("--flags", flag_sets, FLAGS), ("--searches", searches, SEARCHES)):
+        bad = [v for v in value if v not in allowed]
+        if bad:
+            ap.error(f"{name}: unknown {bad}, allowed: {', '.join(allowed)}")
+    here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    trees = {"new": here}
+    if a.baseline:
+        if not os.path.isfile(os.path.join(a.baseline, "psbmpc_jax", "__init__.py")):
+            ap.error(f"--baseline: {a.baseline} holds no psbmpc_jax package")
+        trees["old"] = os.path.abspath(a.baseline)
+    runs: dict = {(t, f, s): [] for t in trees for f in flag_sets for s in searches}
     for r in range(a.rounds):
-        for (flags, search), out in runs.items():
-            env = dict(os.environ, XLA_FLAGS=FLAGS[flags])
+        for (tree, flags, search), out in runs.items():
+            env = dict(os.environ, XLA_FLAGS=FLAGS[flags], PYTHONPATH=trees[tree])
             p = subprocess.run([sys.executable, os.path.abspath(__file__), "--child", search, "--n-cbs",
-                                str(a.n_cbs)], env=env, capture_output=True, text=True, timeout=900)
+                                str(a.n_cbs)], env=env, capture_output=True, text=True, timeout=900,
+                               cwd=trees[tree])
             if p.returncode != 0:
-                raise SystemExit(f"{flags}/{search}: child failed ({p.returncode}): {p.stderr[-2000:]}")
+                raise SystemExit(f"{tree}/{flags}/{search}: child failed ({p.returncode}): {p.stderr[-2000:]}")
             rec = json.loads(p.stdout.strip().splitlines()[-1])
             out.append(rec)
-            print(f"round {r} {flags:10s} {search:8s} lower {rec['lower_s']:6.1f} s  compile {rec['compile_s']:6.1f} s"
-                  f"  best {rec['best']}", flush=True)
+            print(f"round {r} {tree} {flags:10s} {search:8s} lower {rec['lower_s']:6.1f} s  compile "
+                  f"{rec['compile_s']:6.1f} s  best {rec['best']}  lines {rec['hlo_lines']}", flush=True)
     points = []
-    for (flags, search), recs in runs.items():
+    for (tree, flags, search), recs in runs.items():
         lo, co = [x["lower_s"] for x in recs], [x["compile_s"] for x in recs]
-        points.append({"flags": flags, "xla_flags": FLAGS[flags], "grounding_search": search, "n_cbs": a.n_cbs,
+        points.append({"tree": tree, "tree_path": trees[tree], "flags": flags, "xla_flags": FLAGS[flags],
+                       "grounding_search": search, "n_cbs": a.n_cbs,
                        "hlo_lines": recs[0]["hlo_lines"], "best": sorted({x["best"] for x in recs}),
                        "lower_median_s": statistics.median(lo), "lower_min_s": min(lo), "lower_max_s": max(lo),
                        "compile_median_s": statistics.median(co), "compile_min_s": min(co),

@@ -18,11 +18,11 @@ a handful of tiles per column can hold the maximum.  This search finds them with
    points of its K tiles of largest bound; the first of the largest scores.
 3. Proven when that score is larger than every bound left out, or when it and every bound left out are 0 (the
    first time step, as the other searches).
-4. Later rounds (:data:`ROUNDS`), only the unproven pairs, gathered into a capacity from a ladder (the smallest that
-   holds them runs, ``lax.switch``): their next tiles by bound, the last round every tile of the column.  Pairs
-   still unproven - non-monotone parameters (``bound`` = inf), more unproven pairs than a round holds, a chunk
-   with too many odd-degree vertices - send the whole call to the culled search (``lax.cond``: on a CPU only the
-   branch taken runs).
+4. Later rounds (:data:`ROUNDS`), only the unproven pairs, in blocks of an eighth of the round's capacity (a loop
+   over as many blocks as hold them, none when every pair is proven): their next tiles by bound, the last round
+   every time step of the column.  Pairs still unproven - non-monotone parameters (``bound`` = inf), more
+   unproven pairs than a round holds, a chunk with too many odd-degree vertices - send the whole call to the
+   culled search (``lax.cond``: on a CPU only the branch taken runs).
 
 The same answer as the culled search (the first of equal maxima, the distances from the same edge terms); not
 differentiated (an integer result).  Everything is elementwise, unrolled over chunks and tiles where XLA:CPU's
@@ -33,8 +33,6 @@ at 7 098 (benchmarks/bench_cpu_targets.py, results/cpu_targets_cpu_20261129T0300
 """
 
 from __future__ import annotations
-
-import functools
 
 import jax.numpy as jnp
 from jax import lax
@@ -190,9 +188,9 @@ def bounded_candidates(px, py, tw, score, bound, edges, nxt, n, with_direction=T
     tol = 64 * jnp.finfo(px.dtype).eps * (scale + 1.0)
     n_chunks = jnp.max(ch.n)
     empty = jnp.broadcast_to((n == 0)[:, None], (P, B))
-    exact = lambda x, y, rows, trailing: lax.cond(
-        with_direction, lambda: _exact(x, y, rows, n_chunks, True, trailing),
-        lambda: _exact(x, y, rows, n_chunks, False, trailing))
+    # one exact-distance program for every round: the direction costs two selects per edge, and a traced switch
+    # between the two forms copied the edge loop into the program twice per round
+    exact = lambda x, y, rows, trailing: _exact(x, y, rows, n_chunks, True, trailing)
 
     def points(keep, lead):
         """Time steps ``[K * S, ...]`` of the kept tiles ``keep [K, ...]`` and whether they are before T."""
@@ -211,29 +209,40 @@ def bounded_candidates(px, py, tw, score, bound, edges, nxt, n, with_direction=T
     best, k = _best_step(jnp.where(t_ok, score(d, ex, ey, tw[t]), -jnp.inf), t, T)
     k, proven = _proof(best, k, rest, empty)
 
-    # later rounds, the unproven (polygon, column) pairs only, at most ``share`` of them: the next tiles
+    # later rounds, the unproven (polygon, column) pairs only, at most ``share`` of them, in blocks of an eighth of
+    # that: a loop over as many blocks as hold them (none: the round is skipped), one copy of the round's program
     best, k, proven, ub = best.reshape(-1), k.reshape(-1), proven.reshape(-1), ub.reshape(nt, -1)
+    empty = empty.reshape(-1)
     for more, share in rounds[1:]:
-        def deeper(best, k, proven, ub, *, more=more, Q):
-            count = jnp.sum(~proven)
-            q = jnp.nonzero(~proven, size=Q, fill_value=0)[0]
+        cap = max(1, int(P * B * share))
+        Q = max(1, cap // 8)
+        n_blocks = -(-cap // Q)
+        count = jnp.sum(~proven)
+        order = jnp.nonzero(~proven, size=n_blocks * Q, fill_value=0)[0]
+
+        def block(j, carry, *, more=more, Q=Q, order=order, count=count):
+            best, k, proven, ub = carry
+            q = lax.dynamic_slice_in_dim(order, j * Q, Q)
             kq, bq = k[q], best[q]
-            keep, rest, ubq = _keep(ub[:, q], nt if more is None else more)
-            t, t_ok = points(keep, (Q,))
+            if more is None:                        # every step of the column: nothing left out
+                t = jnp.broadcast_to(jnp.arange(T)[:, None], (T, Q))
+                t_ok, rest, ubq = jnp.ones((T, Q), bool), jnp.full((Q,), -jnp.inf, bq.dtype), None
+            else:
+                keep, rest, ubq = _keep(ub[:, q], more)
+                t, t_ok = points(keep, (Q,))
             d, ex, ey = exact(px[t, q % B], py[t, q % B], ch.rows[q // B], 0)
             b2, k2 = _best_step(jnp.where(t_ok, score(d, ex, ey, tw[t]), -jnp.inf), t, T)
             better = (b2 > bq) | ((b2 == bq) & (k2 < kq))
-            kq, pq = _proof(jnp.maximum(b2, bq), jnp.where(better, k2, kq), rest, empty.reshape(-1)[q])
-            at = jnp.where(jnp.arange(Q) < count, q, P * B)                     # the padding entries: dropped
+            kq, pq = _proof(jnp.maximum(b2, bq), jnp.where(better, k2, kq), rest, empty[q])
+            at = jnp.where(j * Q + jnp.arange(Q) < count, q, P * B)             # the padding entries: dropped
+            ub = ub if ubq is None else ub.at[:, at].set(ubq, mode="drop")
             return (best.at[at].set(jnp.maximum(b2, bq), mode="drop"), k.at[at].set(kq, mode="drop"),
-                    proven.at[at].set(pq, mode="drop"), ub.at[:, at].set(ubq, mode="drop"))
+                    proven.at[at].set(pq, mode="drop"), ub)
 
-        # a ladder of capacities, the smallest that holds the unproven pairs runs (none: the round is skipped)
-        sizes = sorted({max(1, int(P * B * share * f)) for f in (1 / 8, 1 / 2, 1)})
-        branches = [functools.partial(deeper, Q=Q) for Q in sizes] + [lambda *a: a]
-        count = jnp.sum(~proven)
-        pick = jnp.where(count == 0, len(sizes), sum((count > Q).astype(jnp.int32) for Q in sizes))
-        best, k, proven, ub = lax.switch(pick, branches, best, k, proven, ub)
+        # more unproven pairs than the round holds: the round is skipped (with shares that fall from round to
+        # round, as ROUNDS, the call then ends in the culled search whatever this round would prove)
+        n_run = jnp.where(count > cap, 0, -(-count // Q))
+        best, k, proven, ub = lax.fori_loop(0, n_run, block, (best, k, proven, ub))
     return k.reshape(P, B), proven.reshape(P, B) & ~odd_overflow
 
 
