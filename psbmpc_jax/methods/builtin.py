@@ -25,6 +25,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import asdict
 
+from ..design_ship import SCALE_PARAMS
 from .base import BuildContext, DesignShip, Method
 from .colregs_option_settings import OPTION_METHODS, ColregsOptionSpec, parse_colregs_option
 from .informed_settings import InformedSpec, parse_informed
@@ -88,6 +89,14 @@ class Psbmpc(Method):
 
         return None if mpc is None else get_preset(mpc.preset).design_ship
 
+    def untuned(self, given_sections, mpc=None) -> str | None:
+        """The preset's scale-dependent parameters (:data:`psbmpc_jax.design_ship.SCALE_PARAMS`) that
+        ``mpc.params`` does not give, or None when it gives all of them: a weight alone (``K_coll``,
+        ``K_chi_port``) does not tune the preset for another ship."""
+        given = () if mpc is None else mpc.given_params
+        missing = [k for k in SCALE_PARAMS if k not in given]
+        return f"mpc.params {', '.join(missing)}" if missing else None
+
     def build(self, scenario, ships, context: BuildContext):
         from .grid import GridController
 
@@ -118,6 +127,9 @@ class Refined(Method):
 
     def design_for(self, mpc) -> DesignShip | None:
         return self.base.design_for(mpc)
+
+    def untuned(self, given_sections, mpc=None) -> str | None:
+        return self.base.untuned(given_sections, mpc)
 
     def build(self, scenario, ships, context: BuildContext):
         option_terms(scenario, self.name)          # refused when mpc.colregs_option is on (not in the refinement)
