@@ -282,11 +282,11 @@ class Method:
             scenario's preset takes the preset's) when the file gives none of :attr:`tuning_sections`.
     """
 
-    name: ClassVar[str] = ""
-    description: ClassVar[str] = ""
+    name: str = ""                  # class attributes; a wrapper (psbmpc_refine) sets them per instance
+    description: str = ""
     own_ship_only: ClassVar[bool] = False
     diagnostics: ClassVar[bool] = False
-    tuning_sections: ClassVar[tuple] = ()
+    tuning_sections: tuple = ()
     design_ship: ClassVar[DesignShip | None] = None
 
     def design_for(self, mpc) -> DesignShip | None:

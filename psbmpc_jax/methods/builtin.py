@@ -133,7 +133,12 @@ class Refined(Method):
 
     def build(self, scenario, ships, context: BuildContext):
         option_terms(scenario, self.name)          # refused when mpc.colregs_option is on (not in the refinement)
+        from .grid import GridController
+
         controller = self.base.build(scenario, ships, context)
+        if not isinstance(controller, GridController):
+            raise TypeError(f"method {self.name} refines a grid search; method {self.base.name} built a "
+                            f"{type(controller).__name__}, not a GridController")
         controller.enable_refinement()
         controller.method = self.name
         return controller
@@ -297,6 +302,7 @@ def _smooth_section(d, ctx: SectionContext) -> SmoothSpec:
 
 def _refine_section(d, ctx: SectionContext) -> RefineSpec:
     """``mpc.refine``, with ``mpc.fis.e_cl_m`` / ``n_y`` when the file gives them (the refinement's FIS)."""
+    assert ctx.config is not None, "mpc.refine is parsed after the PSB-MPC configuration (after_config)"
     refine = parse_refine(d, ctx.config)
     fis, given = ctx.parsed["fis"], ctx.mpc.get("fis") or {}
     return dataclasses.replace(refine, fis_e_cl=fis.e_cl if "e_cl_m" in given else None,
