@@ -60,7 +60,7 @@ def slots_for(case, name):
             return solve_path_mpc(data, s.path, previous=previous)
         r = jax.device_get(call())
         out.append({"point": {"case": case, "what": f"path_mpc_{label}", "scenario": name, "N_p": s.path.N_p,
-                              "dt": s.path.dt, "n_circles": int(planner.circles.count),
+                              "dt": s.path.dt, "n_circles": int(planner.circles.n_circles),
                               "inner_iterations": int(r.inner), "outer_iterations": int(r.outer),
                               "status": int(r.status), "violation": float(r.violation)},
                     "call": call})

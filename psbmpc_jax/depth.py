@@ -117,7 +117,7 @@ def _where(eqn) -> str:
         return source_info_util.summarize(eqn.source_info) or "<unknown>"
     path = os.path.abspath(frame.file_name)
     root = next((r for r in _ROOTS if path.startswith(r + os.sep)), None)
-    line = getattr(frame, "start_line", None) or frame.line_num
+    line = getattr(frame, "start_line", None) or getattr(frame, "line_num", None)     # the name by JAX version
     return f"{os.path.relpath(path, root) if root else path}:{line} ({frame.function_name.replace('.<locals>.', '.')})"
 
 
@@ -142,8 +142,10 @@ class _Analyser:
         return self._cache[key] if key in self._cache else self._cache.setdefault(key, make())
 
     def profile(self, jaxpr) -> Counter | None:
-        ps = lambda: [self.eqn_profile(e) for e in jaxpr.eqns]  # noqa: E731
-        return self._memo("profile", jaxpr, lambda: None if None in ps() else sum(ps(), Counter()))
+        def make() -> Counter | None:
+            parts = [self.eqn_profile(e) for e in jaxpr.eqns]
+            return None if any(p is None for p in parts) else _total(parts)
+        return self._memo("profile", jaxpr, make)
 
     def eqn_profile(self, eqn) -> Counter | None:
         return self._memo("eqn", eqn, lambda: self._eqn_profile(eqn))
@@ -180,7 +182,8 @@ class _Analyser:
         eqns, n = jaxpr.eqns, len(jaxpr.eqns)
         outs = [v for i, v in enumerate(jaxpr.outvars) if needed is None or needed[i]]
         last = {v: n for v in outs if not isinstance(v, jcore.Literal)}   # last use by an equation that runs
-        runs, out_needed = [False] * n, [None] * n
+        runs = [False] * n
+        out_needed: list[tuple[bool, ...]] = [()] * n       # every entry set below
         for i in range(n - 1, -1, -1):
             e = eqns[i]
             out_needed[i] = tuple(v in last for v in e.outvars)
@@ -189,11 +192,11 @@ class _Analyser:
                 for v in e.invars:
                     if not isinstance(v, jcore.Literal) and v not in last:
                         last[v] = i
-        skipped = sum((self.eqn_profile(e) for e, r in zip(eqns, runs) if not r), Counter())
-        segments = []
+        skipped = _total([self.eqn_profile(e) for e, r in zip(eqns, runs) if not r])
+        segments: list[tuple] = []
         running = [i for i in range(n) if runs[i]]
-        for dynamic, group in itertools.groupby(running, key=lambda i: self.eqn_profile(eqns[i]) is None):
-            group = list(group)
+        for dynamic, members in itertools.groupby(running, key=lambda i: self.eqn_profile(eqns[i]) is None):
+            group = list(members)
             if dynamic:
                 segments += [("eqn", eqns[i], None if all(out_needed[i]) else out_needed[i]) for i in group]
                 continue
@@ -208,7 +211,7 @@ class _Analyser:
                 effects = set().union(*(e.effects for e in chunk))
                 fn = jax.jit(jcore.jaxpr_as_fun(jcore.ClosedJaxpr(jcore.Jaxpr([], ins, outs, chunk, effects,
                                                                               info), [])))
-            segments.append(("chunk", fn, chunk, ins, outs, sum((self.eqn_profile(e) for e in chunk), Counter())))
+            segments.append(("chunk", fn, chunk, ins, outs, _total([self.eqn_profile(e) for e in chunk])))
         return skipped, segments
 
     def run(self, jaxpr, consts, args, needed: tuple | None = None) -> list:
@@ -247,13 +250,15 @@ class _Analyser:
                 return self.run(taken.jaxpr, taken.consts, invals[1:], needed)
             self.counts.update(profile)
             return [None] * len(eqn.outvars) if needed is not None and not any(needed) else _bind(eqn, invals)
-        return self.run(*_inner(eqn), invals, needed)     # call-like (eqn_profile refused the others)
+        inner = _inner(eqn)
+        assert inner is not None, "call-like: eqn_profile refused the others"
+        return self.run(inner[0], inner[1], invals, needed)
 
     def _scan(self, eqn, invals) -> list:
         p = eqn.params
         body, length, n_consts, n_carry = p["jaxpr"], int(p["length"]), p["num_consts"], p["num_carry"]
         consts, carry, xs = invals[:n_consts], invals[n_consts:n_consts + n_carry], invals[n_consts + n_carry:]
-        ys = [None] * length
+        ys: list = [None] * length
         for k in range(length):
             i = length - 1 - k if p["reverse"] else k
             out = self.run(body.jaxpr, body.consts, [*consts, *carry, *(x[i] for x in xs)])
@@ -280,6 +285,15 @@ class _Analyser:
                 trips += 1
         self.counts[(_where(eqn), "while", None, None, trips)] += 1
         return list(carry)
+
+
+def _total(profiles: list) -> Counter:
+    """The sum of loop profiles that are all known (not None: static equations)."""
+    total: Counter = Counter()
+    for p in profiles:
+        assert p is not None, "only static equations (a profile, not None) are summed"
+        total += p
+    return total
 
 
 def _inner(eqn):
@@ -331,9 +345,9 @@ def _analyse(fn, args, kwargs, outputs: bool) -> DepthReport:
         raise ValueError(f"sequential_depth: {len(leaves)} argument leaves but the traced program takes "
                          f"{len(closed.jaxpr.invars)} inputs; pass static arguments bound with functools.partial")
     analyser = _Analyser()
-    outs = analyser.run(closed.jaxpr, closed.consts, leaves, None if outputs else (False,) * len(closed.out_avals))
+    raw = analyser.run(closed.jaxpr, closed.consts, leaves, None if outputs else (False,) * len(closed.out_avals))
     outs = [o if getattr(o, "dtype", None) == s.dtype else jnp.asarray(o, s.dtype)
-            for o, s in zip(outs, jax.tree.leaves(out_shape))] if outputs else None
+            for o, s in zip(raw, jax.tree.leaves(out_shape))] if outputs else None
     return _report(analyser.counts, None if outs is None else jax.tree.unflatten(jax.tree.structure(out_shape), outs))
 
 

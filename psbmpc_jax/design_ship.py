@@ -8,7 +8,18 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["DesignShip"]
+__all__ = ["DesignShip", "SCALE_PARAMS"]
+
+#: The PSB-MPC parameters (fields of :class:`psbmpc_jax.params.Params`) that depend on the ship's scale: the
+#: distances in metres (safety zone ``d_safe``, scenario spacing ``r_ct``, COLREGS range ``d_close``, the LOS
+#: lookahead and acceptance radius of the own-ship and the obstacles) and the time constants of the kinematic
+#: prediction in seconds (course and speed, own-ship and obstacles).  They are the parameters the presets made
+#: for another ship than the default's (``tengesdal2020``, ``akdag2022``) change.  A scenario that runs the
+#: grid search (``psbmpc``, ``psbmpc_refine``) on a ship outside its preset's design ship has tuned the preset
+#: for its ship only when its ``mpc.params`` give every one of them; other keys (``K_coll``, ``K_chi_port``, ...)
+#: are weights that do not carry the scale (:meth:`psbmpc_jax.methods.Method.untuned`).
+SCALE_PARAMS: tuple[str, ...] = ("d_safe", "r_ct", "d_close", "os_lookahead", "ob_lookahead", "os_R_a", "ob_R_a",
+                                 "os_T_chi", "os_T_U", "ob_T_chi", "ob_T_U")
 
 
 @dataclass(frozen=True)
@@ -21,7 +32,8 @@ class DesignShip:
     (the same for every method): the defaults fit a ship whose length and cruise speed are each within a
     factor :attr:`factor` (3) of the design ship's, and whose cruise speed lies in ``speed_range`` when one is
     given (a bound the cost drives the ship to, e.g. the two-level method's U_max).  A scenario that gives the
-    method's own section (:attr:`psbmpc_jax.methods.Method.tuning_sections`) has tuned it and is not checked.
+    method's own section (:attr:`psbmpc_jax.methods.Method.tuning_sections`; for the grid search, whose tuning
+    is the preset, every one of :data:`SCALE_PARAMS` under ``mpc.params``) has tuned it and is not checked.
 
     Attributes:
         length_m, speed_mps: the design ship's length [m] and cruise speed [m/s]; None where the source names

@@ -24,6 +24,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .array_types import HostOrDevice
 from .geometry import edge_table, polygon_distance
 from .situation import polygon_rings, ring_vertices
 
@@ -32,10 +33,10 @@ class DistanceGrid(NamedTuple):
     """``values [Gx, Gy]`` = distance to the nearest polygon at (x0 + i h, y0 + j h); ``origin`` = (x0, y0),
     ``spacing`` = h, ``margin`` = distance assigned outside the grid."""
 
-    values: jax.Array
-    origin: jax.Array
-    spacing: jax.Array
-    margin: jax.Array
+    values: HostOrDevice
+    origin: HostOrDevice
+    spacing: HostOrDevice
+    margin: HostOrDevice
 
 
 def _edge_tables(polygons, dtype):

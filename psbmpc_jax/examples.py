@@ -15,14 +15,14 @@ def paper_head_on(n_ps: int = 5, n_obstacles: int = 2) -> Situation:
     either side of the own-ship's track, each with a conservative tracker covariance."""
     if n_obstacles < 0:
         raise ValueError(f"n_obstacles must be >= 0, got {n_obstacles}")
-    own = OwnShip(state=[0.0, 0.0, 0.0, 2.0], waypoints=[[0.0, 0.0], [2000.0, 0.0]], U_d=2.0, length=5.0,
-                  width=3.0)
+    own = OwnShip(state=np.array([0.0, 0.0, 0.0, 2.0]), waypoints=np.array([[0.0, 0.0], [2000.0, 0.0]]), U_d=2.0,
+                  length=5.0, width=3.0)
     cov = np.diag([4.0, 4.0, 0.05, 0.05])
     obstacles = []
     for i in range(n_obstacles):
         north = 250.0 + 150.0 * i
         east = (-1.0) ** i * 4.0
-        obstacles.append(Obstacle(state=[north, east, -2.0, 0.0], cov=cov, length=5.0, width=3.0, n_ps=n_ps))
+        obstacles.append(Obstacle(state=np.array([north, east, -2.0, 0.0]), cov=cov, length=5.0, width=3.0, n_ps=n_ps))
     return Situation(own, tuple(obstacles))
 
 
@@ -73,12 +73,12 @@ def nidelva_head_on(eps: float = 2.0, n_ps: int = 5, n_so: int = 13, rdp: bool =
     pos = np.asarray(nidelva_own_ship_ned(chart), dtype=float)
     course, run = _free_heading(pos, rings)
     u = np.array([np.cos(course), np.sin(course)])
-    own = OwnShip(state=[pos[0], pos[1], course, 2.0], waypoints=[pos, pos + max(run, 50.0) * u], U_d=2.0,
-                  length=5.0, width=3.0)
+    own = OwnShip(state=np.array([pos[0], pos[1], course, 2.0]),
+                  waypoints=np.array([pos, pos + max(run, 50.0) * u]), U_d=2.0, length=5.0, width=3.0)
     cov = np.diag([4.0, 4.0, 0.05, 0.05])
     obstacles = []
     for k, frac in enumerate((0.45, 0.8)):
         p = pos + frac * run * u + (-1.0) ** k * 3.0 * np.array([-u[1], u[0]])
-        obstacles.append(Obstacle(state=[p[0], p[1], -2.0 * u[0], -2.0 * u[1]], cov=cov, length=5.0, width=3.0,
+        obstacles.append(Obstacle(state=np.array([p[0], p[1], -2.0 * u[0], -2.0 * u[1]]), cov=cov, length=5.0, width=3.0,
                                   n_ps=n_ps))
     return Situation(own, tuple(obstacles), tuple(rings))

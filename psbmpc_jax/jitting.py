@@ -11,8 +11,31 @@ from __future__ import annotations
 
 import functools
 import inspect
+from typing import Any, Callable, ParamSpec, Protocol, TypeVar, cast
 
 import jax
+
+_P = ParamSpec("_P")
+_R = TypeVar("_R", covariant=True)
+
+
+class WithJitted(Protocol[_P, _R]):
+    """A public function (argument checks, then its jitted program) whose program is ``.jitted`` (to lower, count
+    its compiled entries, ...), typed: calls keep the function's signature."""
+
+    jitted: Any
+
+    def __call__(self, *args: _P.args, **kwargs: _P.kwargs) -> _R: ...
+
+
+def with_jitted(jitted: Any) -> Callable[[Callable[_P, _R]], WithJitted[_P, _R]]:
+    """Decorator: attach ``jitted`` (a ``jax.jit`` or :class:`CanonicalJit` program) to the function as
+    ``.jitted``; the function is returned unchanged."""
+
+    def attach(fun: Callable[_P, _R]) -> WithJitted[_P, _R]:
+        setattr(fun, "jitted", jitted)
+        return cast("WithJitted[_P, _R]", fun)      # it has .jitted now (set just above)
+    return attach
 
 
 class CanonicalJit:

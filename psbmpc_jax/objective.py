@@ -27,11 +27,13 @@ from __future__ import annotations
 
 import math
 from functools import partial
+from typing import Annotated, Any
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .array_types import HostOrDevice, Shape
 from .costs.base import needs_applied
 from .evaluate import DEFAULT_TERMS, context, cost_terms
 from .packing import BehaviourArrays, SolveInputs
@@ -80,12 +82,14 @@ def _valid_controls(controls):
     return jnp.all(jnp.isfinite(controls)) & jnp.all((u >= U_RANGE[0]) & (u <= U_RANGE[1]) & (jnp.abs(chi) <= CHI_MAX))
 
 
-def objective(controls, inputs: SolveInputs, params: Params, samples, config: PlannerConfig,
-              terms=DEFAULT_TERMS, *, last_offsets=None, per_step: bool = False, smooth: bool = False):
+def objective(controls: Annotated[HostOrDevice, Shape("K 2")], inputs: SolveInputs, params: Params, samples,
+              config: PlannerConfig, terms=DEFAULT_TERMS, *, last_offsets: Annotated[Any, Shape("2")] = None,
+              per_step: bool = False,
+              smooth: bool = False) -> tuple[Annotated[jax.Array, Shape("")], dict[str, jax.Array]]:
     """Total cost and the cost of each term (dict of scalars) of one control input.
 
     Args:
-        controls: ``[n_M, 2]`` per-maneuver offsets, or ``[N, 2]`` per-step controls with ``per_step=True``.
+        controls: ``[K, 2]``: K = n_M per-maneuver offsets, or K = N per-step controls with ``per_step=True``.
         inputs: packed situation (:func:`psbmpc_jax.packing.pack`); the behaviour table in it is unused.
         params, samples, config, terms: as for :func:`psbmpc_jax.evaluate.evaluate`.
         last_offsets: the planner state's last applied (u, chi); default (1, 0).

@@ -34,6 +34,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .array_types import HostOrDevice
 from .distance_grid import DistanceGrid, build_distance_grid
 from .edge_blocks import host_blocks, padded_blocks
 from .situation import Situation, ring_vertices
@@ -41,47 +42,47 @@ from .situation import Situation, ring_vertices
 
 # ------------------------------------------------------------------------------------------- device types
 class OwnShipArrays(NamedTuple):
-    state: jax.Array
-    wx: jax.Array
-    wy: jax.Array
-    n: jax.Array
-    U_d: jax.Array
-    length: jax.Array
+    state: HostOrDevice
+    wx: HostOrDevice
+    wy: HostOrDevice
+    n: HostOrDevice
+    U_d: HostOrDevice
+    length: HostOrDevice
 
 
 class ObstacleArrays(NamedTuple):
-    state: jax.Array
-    cov: jax.Array
-    length: jax.Array
-    wx: jax.Array
-    wy: jax.Array
-    n: jax.Array
-    n_ps: jax.Array
-    probs: jax.Array
-    weight: jax.Array
-    zeta: jax.Array
-    mask: jax.Array
+    state: HostOrDevice
+    cov: HostOrDevice
+    length: HostOrDevice
+    wx: HostOrDevice
+    wy: HostOrDevice
+    n: HostOrDevice
+    n_ps: HostOrDevice
+    probs: HostOrDevice
+    weight: HostOrDevice
+    zeta: HostOrDevice
+    mask: HostOrDevice
     r18: Any = None             # [O] bool: Rule-18 priority (Obstacle.rule18); None in hand-built inputs
     leg_u: Any = None           # [O, Wo] leg speeds of shared plans (Obstacle.leg_speeds; -1: none)
 
 
 class ChartArrays(NamedTuple):
-    vertices: jax.Array
-    next: jax.Array
-    n: jax.Array
-    mask: jax.Array
+    vertices: HostOrDevice
+    next: HostOrDevice
+    n: HostOrDevice
+    mask: HostOrDevice
     #: ``[K, 2]`` int32 (polygon, first edge slot) of the chart's blocks of 32 edges, back to back
     #: (:func:`psbmpc_jax.edge_blocks.host_blocks`); the ``flat`` grounding search reads them.  None: the
     #: content-independent layout (:func:`psbmpc_jax.edge_blocks.padded_blocks`), correct but more work.
-    blocks: jax.Array | None = None
+    blocks: HostOrDevice | None = None
 
 
 class GridArrays(NamedTuple):
-    values: jax.Array
-    origin: jax.Array
-    spacing: jax.Array
-    margin: jax.Array
-    active: jax.Array
+    values: HostOrDevice
+    origin: HostOrDevice
+    spacing: HostOrDevice
+    margin: HostOrDevice
+    active: HostOrDevice
 
     def distance_grid(self) -> DistanceGrid:
         return DistanceGrid(self.values, self.origin, self.spacing, self.margin)
@@ -93,8 +94,8 @@ class WorldArrays(NamedTuple):
 
 
 class BehaviourArrays(NamedTuple):
-    offsets: jax.Array
-    mask: jax.Array
+    offsets: HostOrDevice
+    mask: HostOrDevice
 
 
 class SolveInputs(NamedTuple):
@@ -342,7 +343,7 @@ def pack(situation: Situation, behaviours: np.ndarray, config, *, capacities: Ca
 # ------------------------------------------------------------------------------------------- batching
 #: Inputs every solve of one batch shares (one chart, one grid, one behaviour table): vmap broadcasts them
 #: (``in_axes=None``) instead of stacking a copy per solve (the Nidelva grid alone is ~16 MB).
-SHARED_AXES = SolveInputs(own=0, obstacles=0, world=None, behaviours=None)
+SHARED_AXES = SolveInputs._make((0, 0, None, None))      # (own, obstacles, world, behaviours): an axes spec
 
 
 def stack(items) -> SolveInputs:
@@ -408,6 +409,9 @@ class PlanResult:
         n_pc_blocks: (row, time-block) pairs evaluated by the collision-probability estimator.
         solve_time_s: wall time of the device call (including the transfer of the cost table).
         behaviours: the behaviour table ``[B, n_M, 2]``.
+        refined, refine_time_s: the gradient refinement's result (:class:`psbmpc_jax.refine.Refinement`,
+            host arrays in the user's frame) and its wall time [s] when :meth:`psbmpc_jax.Planner.plan` ran it
+            (``refine=...``), else None.
     """
 
     def __init__(self, ev, situation: Situation, behaviours: np.ndarray, solve_time: float, *,
@@ -419,7 +423,10 @@ class PlanResult:
         self.behaviours = behaviours
         self.solve_time_s = solve_time
         self.status = status
-        self._ev, self._situation, self._per_polygon, self._cache = ev, situation, per_polygon, {}
+        self._ev, self._situation, self._per_polygon = ev, situation, per_polygon
+        self._cache: dict = {}
+        self.refined: Any = None                   # a Refinement (refine.py imports this module, not back)
+        self.refine_time_s: float | None = None
 
     def __repr__(self) -> str:
         return (f"PlanResult(best_index={self.best_index}, offsets={self.offsets.tolist()}, status={self.status!r}, "

@@ -29,7 +29,8 @@ from .packing import (Capacities, PlanResult, SolveInputs, WorldArrays, pack, pa
                       shift_polygons, snap_origin, unpack)
 from .params import Params, PlannerConfig, params_as_arrays, validate_params
 from .situation import Situation
-from .solve import STATUS_NAMES, PlannerState, solve
+from .solve import PlannerState, solve
+from .status import status_name
 
 #: Cost columns of the default terms.
 COST_TERMS = term_names(DEFAULT_TERMS)
@@ -40,7 +41,7 @@ RECENTRE_DISTANCE = 10_000.0
 
 
 def check_dtype(config: PlannerConfig) -> None:
-    if config.dtype == "float64" and not jax.config.jax_enable_x64:
+    if config.dtype == "float64" and not jax.config.jax_enable_x64:  # type: ignore[attr-defined]  # jax's Config stub lacks its flags
         raise ValueError(
             "PlannerConfig.dtype='float64' needs 64-bit JAX: call jax.config.update('jax_enable_x64', True) "
             "before building arrays (or use dtype='float32')"
@@ -218,9 +219,8 @@ class Planner:
         plan, _, ev = solve(inputs, state, p, samples, config=self.config, terms=self.terms)
         status = int(plan.status)                  # waits for the device
         result = unpack(ev, situation, self.behaviours, time.perf_counter() - t0,
-                        per_polygon=self.config.grounding_mode == "exact", status=STATUS_NAMES[status],
+                        per_polygon=self.config.grounding_mode == "exact", status=status_name(status),
                         names=self.cost_names, origin=origin)
-        result.refined = result.refine_time_s = None
         if status:                                 # nothing to apply: keep the previous offsets
             return result, state
         if refine is None:

@@ -19,10 +19,12 @@ accelerator;
 from __future__ import annotations
 
 import functools
+from typing import Annotated, Any
 
 import jax
 import jax.numpy as jnp
 
+from .array_types import Shape
 from .numerics import wrap_angle
 from .packing import bucket
 
@@ -82,11 +84,15 @@ def _kernel(sc_ref, x0_ref, tab_ref, seg_ref, ci_ref, ui_ref, lat_ref, lim_ref, 
     jax.lax.fori_loop(0, n_out, step, init)
 
 
-def los_rollout_kernel(x0, path, chi_offsets, U_cmd, lateral_offset, lookahead, R_a, T_chi, T_U, dt, *,
-                       seg_speed=None, interpret: bool | None = None):
+def los_rollout_kernel(x0: Annotated[jax.Array, Shape("R 4")], path,
+                       chi_offsets: Annotated[jax.Array, Shape("N R")], U_cmd: Annotated[jax.Array, Shape("N R")],
+                       lateral_offset: Annotated[Any, Shape("R")], lookahead, R_a, T_chi, T_U, dt, *,
+                       seg_speed: Annotated[Any, Shape("R W")] = None,
+                       interpret: bool | None = None) -> tuple[Annotated[jax.Array, Shape("T R")], ...]:
     """:func:`psbmpc_jax.ownship.los_rollout` (``z0`` None) as one Pallas kernel: returns the time-major components
-    ``(x, y, chi, U, cos chi, sin chi)`` and the active segments, each ``[N+1, R]``.  ``interpret`` None: Pallas's
-    interpreter on the CPU, the compiled kernel elsewhere."""
+    ``(x, y, chi, U, cos chi, sin chi)`` and the active segments, each ``[T, R]`` with T = N + 1 (the initial
+    state and one per step; ``path``: per-row padded polylines of ``W`` waypoints, or one shared by every row).
+    ``interpret`` None: Pallas's interpreter on the CPU, the compiled kernel elsewhere."""
     from jax.experimental import pallas as pl
 
     if interpret is None:

@@ -128,11 +128,12 @@ def _sharded_fn(config: PlannerConfig, devices: tuple):
                 per_dev(ev.counters))
 
     def run(inputs: SolveInputs, state: PlannerState, params: Params, samples, terms, n_b: int):
-        in_specs = (SolveInputs(rep, rep, rep, P(AXIS)), rep, rep, rep, rep)   # behaviours split, rest replicated
+        # behaviours split, rest replicated (a SolveInputs of partition specs: a pytree prefix of the inputs)
+        in_specs = (SolveInputs._make((rep, rep, rep, P(AXIS))), rep, rep, rep, rep)
         shapes = jax.eval_shape(lambda *a: local(*a), inputs, state.last_offsets, params, samples, terms)
         total_s, costs_s, details_s, own_s, obs_s, cov_s, cnt_s = shapes
         out_specs = (P(AXIS), _split_spec(costs_s, P(AXIS)), _split_spec(details_s, P(AXIS)),
-                     Trajectory(*(P(None, AXIS) for _ in Trajectory._fields)),       # time-major [T, B]
+                     Trajectory._make(P(None, AXIS) for _ in Trajectory._fields),     # time-major [T, B]
                      _split_spec(obs_s, P(AXIS)), P(AXIS), _split_spec(cnt_s, P(AXIS)))
         # check_vma=False: the evaluator's scans start from replicated carries that become per-device after one
         # step (behaviour-dependent); the vma checker would demand explicit pcasts inside evaluate_arrays.
@@ -255,7 +256,7 @@ def _batch_fn(config: PlannerConfig, terms: tuple, devices: tuple):
         return jax.jit(local), None
     mesh = Mesh(np.array(devices, dtype=object), (RUNS_AXIS,))
     split, rep = P(RUNS_AXIS), P()
-    in_specs = (SolveInputs(own=split, obstacles=split, world=rep, behaviours=rep), split, rep, rep)
+    in_specs = (SolveInputs._make((split, split, rep, rep)), split, rep, rep)    # (own, obstacles, world, behaviours)
     # check_vma=False as in the behaviour split: the evaluator's scans start from replicated carries
     mapped = jax.shard_map(local, mesh=mesh, in_specs=in_specs, out_specs=split, check_vma=False)
 

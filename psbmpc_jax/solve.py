@@ -11,16 +11,17 @@ and a slot for warm starts; it is returned, never mutated.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, NamedTuple
+from typing import Annotated, Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .array_types import HostOrDevice, Shape
 from .costs.grounding import grounding_g
 from .evaluate import DEFAULT_TERMS, Evaluation, evaluate_arrays
 from .jitting import canonical_jit
-from .packing import SolveInputs
+from .packing import ChartArrays, SolveInputs
 from .params import Params, PlannerConfig
 from .status import STATUS_NAMES, Status
 
@@ -76,11 +77,11 @@ class Plan(NamedTuple):
     :func:`solve`, :data:`STATUS_INVALID_INPUT`: a non-finite input or a parameter out of range,
     :func:`inputs_valid`; the next state then keeps the previous offsets)."""
 
-    best: jax.Array
-    offsets: jax.Array
-    total: jax.Array
+    best: Annotated[jax.Array, Shape("")]
+    offsets: Annotated[jax.Array, Shape("n_M 2")]
+    total: Annotated[jax.Array, Shape("")]
     costs: dict
-    status: jax.Array
+    status: Annotated[jax.Array, Shape("")]
 
 
 #: Totals within this many float epsilons (relative) of the minimum are ties (docs/algorithm.md §11).
@@ -98,7 +99,8 @@ def _same_for_all(x, valid, rtol):
     return (hi > 0) & jnp.isfinite(hi) & (hi - lo <= rtol * hi)
 
 
-def signed_distance(px, py, chart):
+def signed_distance(px: Annotated[jax.Array, Shape("B")], py: Annotated[jax.Array, Shape("B")],
+                    chart: ChartArrays) -> Annotated[jax.Array, Shape("P B")]:
     """Signed distance of points ``px, py [B]`` to every polygon of a packed chart
     (:class:`~psbmpc_jax.packing.ChartArrays`): ``[P, B]``, negative inside (minus the distance to the
     boundary; even-odd rule over the polygon's rings), +inf for padding polygons."""
@@ -125,7 +127,7 @@ def signed_distance(px, py, chart):
 
 
 def selection_cost(ev: Evaluation, inputs: SolveInputs, params: Params | None = None,
-                   config: PlannerConfig | None = None):
+                   config: PlannerConfig | None = None) -> Annotated[jax.Array, Shape("B")]:
     """The cost :func:`select` ranks the behaviours by (docs/algorithm.md §11): the total, except where a hazard
     is at the present — a cost the same for every behaviour because its maximum over time is at t_0, which
     every behaviour shares.  Such a cost says nothing about which behaviour escapes it, so it is replaced:
@@ -185,7 +187,8 @@ def selection_cost(ev: Evaluation, inputs: SolveInputs, params: Params | None = 
     return jnp.where(jnp.isfinite(rank), rank, total)
 
 
-def break_ties(rank, valid, offsets):
+def break_ties(rank: Annotated[jax.Array, Shape("B")], valid: Annotated[HostOrDevice, Shape("B")],
+               offsets: Annotated[HostOrDevice, Shape("B n_M 2")]) -> Annotated[jax.Array, Shape("")]:
     """Index of the smallest ``rank`` among ``valid`` behaviours; ranks within :data:`TIE_EPS` float epsilons
     (relative) of it are ties, broken by the first maneuver: the smallest course offset |chi_1|, then
     starboard (chi_1 >= 0) before port, then the highest speed factor u_1, then the lowest index.  -1 when no

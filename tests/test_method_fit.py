@@ -3,10 +3,13 @@ loads with settings that fit its ships or is refused with the reason (Method.che
 
 import warnings
 
+import numpy as np
 import pytest
 import yaml
 
+from psbmpc_jax.design_ship import SCALE_PARAMS
 from psbmpc_jax.methods import REGISTRY, DesignShip
+from psbmpc_jax.params import Params
 from psbmpc_jax.presets import PRESETS
 from psbmpc_jax.scenario import builtin_scenarios, load_scenario, scenario_from_dict
 from psbmpc_jax.scenario.schema import SCENARIO_DIR
@@ -32,11 +35,11 @@ def test_every_scenario_by_every_method_fits_or_is_refused_by_name(scenario):
             msg = str(exc)
             assert design is not None, f"{scenario} x {method}: refused without a design ship: {msg}"
             assert f"method {method} on ship " in msg and "were tuned for" in msg, msg
-            assert not any(k in own.mpc.given for k in REGISTRY[method].tuning_sections), msg
+            assert REGISTRY[method].untuned(own.mpc.given, own.mpc) is not None, msg
             continue
         # loaded: either the method's tuning is the scenario's (its section given, or no design ship) or the
         # ships that run it lie inside the design ship's range
-        if design is not None and not any(k in sc.mpc.given for k in REGISTRY[method].tuning_sections):
+        if design is not None and REGISTRY[method].untuned(sc.mpc.given, sc.mpc) is not None:
             assert REGISTRY[method].design_for(sc.mpc) == design
             assert design.misfit(sc.own_ship.length, sc.own_ship.U_d) is None, (scenario, method)
 
@@ -93,6 +96,12 @@ def test_every_mpc_preset_names_its_design_ship():
     assert (PRESETS["akdag2022"].design_ship.length_m, PRESETS["akdag2022"].design_ship.speed_mps) == (116, 6)
 
 
+def _scaled_for_100m() -> dict:
+    """Every scale-dependent parameter, scaled from the nidelva preset's 5 m vessels to a 100 m ship."""
+    nidelva = PRESETS["nidelva"].params
+    return {k: float(getattr(nidelva, k)) * 20.0 for k in SCALE_PARAMS}
+
+
 def _large_ships_on_the_nidelva_preset():
     data = yaml.safe_load((SCENARIO_DIR / "head_on.yaml").read_text())
     del data["mpc"]["params"]                            # the preset's tuning as it is
@@ -104,16 +113,17 @@ def _large_ships_on_the_nidelva_preset():
 @pytest.mark.parametrize("method", ["psbmpc", "psbmpc_refine"])
 def test_the_psbmpc_family_checks_the_ships_against_the_preset(method):
     data = _large_ships_on_the_nidelva_preset()
-    with pytest.raises(ValueError, match=rf"method {method} on ship 'OS': its default settings \(mpc.params not in "
-                                         r"the file\) were tuned for preset nidelva: Tengesdal et al. 2022, Table 1 "
-                                         r"\(river, 5 m vessels\) .* length 100 m outside 1.67-15 m\. Give "
-                                         r"mpc.params"):
+    everything = ", ".join(SCALE_PARAMS)
+    with pytest.raises(ValueError, match=rf"method {method} on ship 'OS': its default settings \(mpc.params "
+                                         rf"{everything} not in the file\) were tuned for preset nidelva: Tengesdal "
+                                         r"et al. 2022, Table 1 \(river, 5 m vessels\) .* length 100 m outside "
+                                         rf"1.67-15 m\. Give mpc.params {everything} tuned for this ship"):
         scenario_from_dict(data, method=method)
     data["own_ship"]["length_m"] = 15.0                  # the factor 3 is inclusive; the preset names no speed
     data["own_ship"]["speed_mps"] = 7.0
     assert scenario_from_dict(data, method=method).mpc.method == method
     data = _large_ships_on_the_nidelva_preset()
-    data["mpc"]["params"] = {"d_safe": 60.0}             # the file tunes the preset for its ship
+    data["mpc"]["params"] = _scaled_for_100m()           # the file tunes the preset for its ship
     assert scenario_from_dict(data, method=method).own_ship.length == 100.0
     data = _large_ships_on_the_nidelva_preset()
     data["mpc"]["preset"] = "tengesdal2020"               # or picks the preset made for its ship (30 m at 9 m/s)
@@ -128,3 +138,48 @@ def test_a_target_running_psbmpc_is_checked_against_the_preset():
     data["targets"][0]["length_m"] = 60.0
     with pytest.raises(ValueError, match=r"method psbmpc on ship 'TS1': .* preset nidelva: .* length 60 m outside"):
         scenario_from_dict(data)
+
+
+@pytest.mark.parametrize("method", ["psbmpc", "psbmpc_refine"])
+@pytest.mark.parametrize("params", [{"K_coll": 50.0}, {"K_chi_port": 6.0}, {"K_coll": 50.0, "kappa": 3.0}])
+def test_a_weight_under_mpc_params_does_not_tune_the_preset_for_another_ship(method, params):
+    # before: any key under mpc.params skipped the check, so a lone weight let a 100 m ship run the 5 m tuning
+    data = _large_ships_on_the_nidelva_preset()
+    data["mpc"]["params"] = params
+    with pytest.raises(ValueError, match=rf"method {method} on ship 'OS': its default settings \(mpc.params "
+                                         rf"{', '.join(SCALE_PARAMS)} not in the file\) were tuned for preset "
+                                         r"nidelva: .* length 100 m outside 1.67-15 m"):
+        scenario_from_dict(data, method=method)
+    data["mpc"]["params"] = {**params, **_scaled_for_100m()}      # with the scale-dependent ones as well: accepted
+    sc = scenario_from_dict(data, method=method)
+    assert sc.mpc.params.d_safe == 100.0 and set(sc.mpc.given_params) == set(params) | set(SCALE_PARAMS)
+
+
+def test_a_partial_scale_override_is_refused_naming_what_is_missing():
+    data = _large_ships_on_the_nidelva_preset()
+    scaled = _scaled_for_100m()
+    data["mpc"]["params"] = {k: scaled[k] for k in ("d_safe", "r_ct", "d_close")}
+    rest = ", ".join(k for k in SCALE_PARAMS if k not in ("d_safe", "r_ct", "d_close"))
+    with pytest.raises(ValueError, match=rf"\(mpc.params {rest} not in the file\)") as info:
+        scenario_from_dict(data)
+    assert "d_safe" not in str(info.value).split("were tuned")[0]
+    data["mpc"]["params"] = {k: v for k, v in scaled.items() if k != "ob_T_U"}
+    with pytest.raises(ValueError, match=r"\(mpc.params ob_T_U not in the file\)"):
+        scenario_from_dict(data)
+
+
+def test_a_fitting_ship_needs_no_scale_parameters():
+    # the shipped head_on gives only K_chi_port: its 5 m ships fit the nidelva preset, so it loads as before
+    data = yaml.safe_load((SCENARIO_DIR / "head_on.yaml").read_text())
+    assert set(data["mpc"]["params"]) == {"K_chi_port"}
+    assert scenario_from_dict(data).mpc.given_params == ("K_chi_port",)
+
+
+def test_the_scale_parameters_are_the_ones_the_ship_scale_presets_change():
+    fields = set(Params.__dataclass_fields__)
+    assert set(SCALE_PARAMS) <= fields and len(set(SCALE_PARAMS)) == len(SCALE_PARAMS)
+    default = Params()
+    for name in ("tengesdal2020", "akdag2022"):       # presets made for ships of another scale than Params()'s
+        p = PRESETS[name].params
+        changed = {k for k in fields if not np.array_equal(getattr(p, k), getattr(default, k), equal_nan=True)}
+        assert changed == set(SCALE_PARAMS), (name, changed ^ set(SCALE_PARAMS))

@@ -279,7 +279,7 @@ def test_random_chart_device_equals_oracle(seed):
     assert len(out_d) == len(out_o) >= 1
     assert sum(int(d.inside.sum()) for d in dev) + sum(int((d.upper < 40).sum()) for d in dev) > 10   # land seen
     circles, remaining = crossing_land_circles(w, land, 2.0)
-    assert circles.count == len(out_d)
+    assert circles.n_circles == len(out_d)
     # every remaining piece is clear of every leg
     for p in remaining:
         for j in range(3):
@@ -361,7 +361,7 @@ def test_crossing_land_becomes_enclosing_circle_and_leaves_corridor():
     bank = np.array([[-50.0, 25.0], [250.0, 25.0], [250.0, 60.0], [-50.0, 60.0]])
     land = [rock, part, corner, bank]
     circles, remaining = crossing_land_circles(w, land, 2.0)
-    assert circles.count == 2 and len(remaining) == 1
+    assert circles.n_circles == 2 and len(remaining) == 1
     merged = Polygon(rock).union(Polygon(part))
     for piece in (merged, Polygon(corner)):
         k = int(np.argmin(np.linalg.norm(circles.centres - np.asarray(piece.centroid.coords[0]), axis=1)))
@@ -393,7 +393,7 @@ def test_crossing_land_becomes_enclosing_circle_and_leaves_corridor():
         assert any(Point(c).buffer(r - 2.0 + 1e-6, quad_segs=256).covers(g.buffer(-1e-3)) for g in near)
     # legs=[1]: only the corner piece crosses leg 1
     c1, rem1 = crossing_land_circles(w, land, 0.0, legs=[1])
-    assert c1.count == 1 and len(rem1) == 2
+    assert c1.n_circles == 1 and len(rem1) == 2
     # land within the margin of the leg without touching it stays in RG and flags samples inside
     near = np.array([[50.0, 1.0], [60.0, 1.0], [60.0, 8.0], [50.0, 8.0]])
     c = leg_corridor(w, 0, [near], margin=3.0, half_width=30.0, sample=5.0, device=False)
@@ -429,7 +429,7 @@ def test_static_circles_inputs():
     c = from_yaml([{"center_m": [10, -5.5], "radius_m": 3}, {"center_m": [0.0, 0.0], "radius_m": 0.5}])
     np.testing.assert_allclose(c.centres, [[10, -5.5], [0, 0]])
     np.testing.assert_allclose(c.radii, [3, 0.5])
-    assert from_yaml(None).count == 0 and from_yaml([]).count == 0
+    assert from_yaml(None).n_circles == 0 and from_yaml([]).n_circles == 0
     bad = [
         ([{"center_m": [0, 0], "radius_m": -1}], r"static_obstacles\[0\]\.radius_m must be >= 0"),
         ([{"center_m": [0, 0], "radius_m": 1}, {"center_m": [0], "radius_m": 1}],
@@ -460,11 +460,11 @@ def test_static_circles_inputs():
     with pytest.raises(ValueError, match="circles must be a StaticCircles"):
         circle_residuals(np.zeros((2, 2)), (np.zeros((1, 2)), np.ones(1)), 1.0)
     both = concat_circles(c, StaticCircles.empty(), c)
-    assert both.count == 4
+    assert both.n_circles == 4
     # circles from land: one per piece of the union, margin added
     sq = np.array([[0.0, 0.0], [4.0, 0.0], [4.0, 3.0], [0.0, 3.0]])
     cl = circles_from_land([sq, sq + [2.0, 0.0], sq + [100.0, 0.0]], 1.0)
-    assert cl.count == 2
+    assert cl.n_circles == 2
     np.testing.assert_allclose(sorted(cl.radii), [3.5, 1.0 + math.hypot(3.0, 1.5)], atol=1e-9)
     centre, radius = enclosing_circle(Polygon(sq), 0.0)
     np.testing.assert_allclose(centre, [2.0, 1.5], atol=1e-9)

@@ -19,7 +19,7 @@ REFINE_SCHEMA = "psbmpc-bench-refine/1"
 #: (None: the config's T), starts, batch).  "nidelva": the preset's T = 150 s with a 60 s refine horizon;
 #: "nidelva_T60": the whole MPC horizon 60 s; "paper000": the Smooth-SBMPC paper's T_init 60 s / T_mpc 20 s at
 #: dt 1 s (docs/smooth_sbmpc.md).  Always 2 obstacles x 5 scenarios and the 13 Table 2 polygons (grid mode).
-REFINE_CASES = (
+REFINE_CASES: tuple[tuple[str, dict[str, float], float | None, int, str], ...] = (
     ("nidelva", {}, 60.0, 1, "map"),
     ("nidelva", {}, 60.0, 4, "map"),
     ("nidelva", {}, 60.0, 16, "map"),

@@ -125,10 +125,19 @@ def output_file_problem(path, option: str) -> str | None:
 
 
 # ------------------------------------------------------------------------------------------------ parser
-def build_parser() -> argparse.ArgumentParser:
+class CliParser(argparse.ArgumentParser):
+    """The top-level parser; ``subcommands`` holds each subcommand's parser by name (its ``error()`` prints the
+    subcommand's usage)."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.subcommands: dict[str, argparse.ArgumentParser] = {}
+
+
+def build_parser() -> CliParser:
     from .. import __version__
 
-    parser = argparse.ArgumentParser(prog="psbmpc-jax", description=DESCRIPTION,
+    parser = CliParser(prog="psbmpc-jax", description=DESCRIPTION,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action="version", version=f"psbmpc-jax {__version__}")
     parser.add_argument("-v", "--verbose", action="count", default=0, dest="verbosity",
@@ -141,27 +150,27 @@ def build_parser() -> argparse.ArgumentParser:
                                     "maneuver, the best behaviours' costs and the solve time (compile time and "
                                     "steady state separately).")
     add_example_arguments(ex)
-    parser._example_parser = ex
+    parser.subcommands["example"] = ex
     run = sub.add_parser("run", help="closed-loop Monte Carlo simulation of scenario files, with metrics and plots",
                          description="Simulate scenarios (built-in names, glob patterns over them such as "
                                      "'imazu_*', or paths to YAML files; see docs/scenarios.md) and write "
                                      "metrics.json, summary.md and figures per scenario, and an index.md over "
                                      "all of them. Exit status 1 when any run had a collision or grounding.")
     add_run_arguments(run)
-    parser._run_parser = run
+    parser.subcommands["run"] = run
     from .bench import add_bench_arguments
 
     bench = sub.add_parser("bench", help="runtime benchmark sweeps (paper Figs. 5-10), JSON Lines records",
                            description="Runtime benchmark sweeps; records follow docs/bench_schema.md.")
     add_bench_arguments(bench)
-    parser._bench_parser = bench
+    parser.subcommands["bench"] = bench
     from .report import add_report_arguments
 
     report = sub.add_parser("report", help="merge benchmark JSON Lines into a Markdown report with figures",
                             description="Merge psbmpc-bench/1 result files (from any machines) into report.md "
                                         "and PNG box plots.")
     add_report_arguments(report)
-    parser._report_parser = report
+    parser.subcommands["report"] = report
     from ..evaltool.cli import add_evaluate_arguments
 
     ev = sub.add_parser("evaluate", help="COLREGS safety/compliance scores of saved trajectories (EvalTool)",
@@ -172,7 +181,7 @@ def build_parser() -> argparse.ArgumentParser:
                                     "lon[, SOG, COG]; irregular reports, resampled onto a common clock). Exit "
                                     "status 2 for a file that cannot be read.")
     add_evaluate_arguments(ev)
-    parser._evaluate_parser = ev
+    parser.subcommands["evaluate"] = ev
     from .generate import add_generate_arguments
 
     gen = sub.add_parser("generate", help="COLREGS-typed encounters (head-on, crossing, overtaking) as scenario files",
@@ -181,15 +190,17 @@ def build_parser() -> argparse.ArgumentParser:
                                      "water or on a chart, and write them as scenario files. Exit status 2 for bad "
                                      "input, 1 if --check finds a file not classified as requested.")
     add_generate_arguments(gen)
-    parser._generate_parser = gen
+    parser.subcommands["generate"] = gen
     from .campaign import add_campaign_arguments, add_merge_arguments
 
-    parser._campaign_parser = sub.add_parser("campaign", help="scenarios x methods x seeds x runs as resumable tasks",
-                                             description="Run a campaign (docs/campaigns.md).")
-    add_campaign_arguments(parser._campaign_parser)
-    parser._merge_parser = sub.add_parser("merge", help="combine campaign folders into one runs.parquet",
-                                          description="Merge complete campaign folders (docs/campaigns.md).")
-    add_merge_arguments(parser._merge_parser)
+    camp = sub.add_parser("campaign", help="scenarios x methods x seeds x runs as resumable tasks",
+                          description="Run a campaign (docs/campaigns.md).")
+    add_campaign_arguments(camp)
+    parser.subcommands["campaign"] = camp
+    merge = sub.add_parser("merge", help="combine campaign folders into one runs.parquet",
+                           description="Merge complete campaign folders (docs/campaigns.md).")
+    add_merge_arguments(merge)
+    parser.subcommands["merge"] = merge
     return parser
 
 
@@ -406,7 +417,7 @@ def run_scenarios(args, parser) -> int:
             parser.error(f"{exc}{_missing_file_hint(item, names)}")
         except (ValueError, OSError) as exc:
             parser.error(str(exc))
-    plot_runs = {}
+    plot_runs: dict[str, list[int] | None] = {}
     for sc in scenarios:   # --plot-runs against each scenario's number of runs
         n_runs = args.runs or sc.runs
         if args.plot_runs is False:
@@ -424,7 +435,7 @@ def run_scenarios(args, parser) -> int:
         parser.error(problem)
     from ..runfolder import run_folder_problem
 
-    folders = {}
+    folders: dict[pathlib.Path, str] = {}
     for sc in scenarios:
         folder = pathlib.Path(args.out) / output_folder(sc.name, args.method)
         if folder in folders:
@@ -534,18 +545,18 @@ def _main(argv) -> int:
             build_plan(args)
             select_devices(args.devices)
         except ValueError as exc:
-            parser._bench_parser.error(str(exc))
+            parser.subcommands["bench"].error(str(exc))
         args.out = args.out or default_out()
         problem = output_file_problem(args.out, "--out")
         if problem:
-            parser._bench_parser.error(problem)
+            parser.subcommands["bench"].error(problem)
         return run_bench(args)
     if args.command == "run":
-        return run_scenarios(args, parser._run_parser)
+        return run_scenarios(args, parser.subcommands["run"])
     if args.command == "evaluate":
         from ..evaltool.cli import run_evaluate
 
-        return run_evaluate(args, parser._evaluate_parser)
+        return run_evaluate(args, parser.subcommands["evaluate"])
     if args.command == "generate":
         from .generate import USER_ERRORS, run
 
@@ -557,15 +568,15 @@ def _main(argv) -> int:
     if args.command in ("campaign", "merge"):
         from . import campaign
 
-        return (campaign.run_campaign_cli(args, parser._campaign_parser) if args.command == "campaign"
-                else campaign.run_merge_cli(args, parser._merge_parser))
+        return (campaign.run_campaign_cli(args, parser.subcommands["campaign"]) if args.command == "campaign"
+                else campaign.run_merge_cli(args, parser.subcommands["merge"]))
     if args.command == "report":
         from .report import run_report
 
         if args.results:
             problem = output_dir_problem(args.out, "--out")
             if problem:
-                parser._report_parser.error(problem)
+                parser.subcommands["report"].error(problem)
         return run_report(args)
     raise SystemExit(f"psbmpc-jax: unknown command {args.command!r}")  # argparse already guards this
 

@@ -24,10 +24,11 @@ Axes: B rows (behaviours), O obstacles, S scenarios, P polygons, T = N + 1 time 
 from __future__ import annotations
 
 import dataclasses
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, dataclass_transform
 
 import jax
 
+from ..array_types import HostOrDevice
 from ..ownship import Trajectory
 
 
@@ -46,16 +47,16 @@ class Context(NamedTuple):
     priority flags (``Obstacle.rule18``; None when the inputs carry none)."""
 
     t: jax.Array
-    offsets: jax.Array
+    offsets: HostOrDevice
     last_offsets: jax.Array
     own: Trajectory
     obstacles: Trajectory
     obs_cov: jax.Array
     cov_stats: tuple
-    scen_valid: jax.Array
-    radius: jax.Array
-    zeta_k: jax.Array
-    scen_weight: jax.Array
+    scen_valid: HostOrDevice
+    radius: HostOrDevice
+    zeta_k: HostOrDevice
+    scen_weight: HostOrDevice
     world: Any
     dense: bool
     own_applied: Any = None
@@ -76,6 +77,7 @@ class TermValue(NamedTuple):
     counters: dict = {}
 
 
+@dataclass_transform()      # for type checkers: the decorated class is a dataclass (its fields are __init__'s)
 def cost_term(cls=None, *, static: tuple[str, ...] = ()):
     """Class decorator: a frozen dataclass whose fields are the term's parameters, registered as a pytree.
 

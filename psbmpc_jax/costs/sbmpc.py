@@ -25,9 +25,12 @@ drops τ₀ *before* evaluating R (slicing afterwards would still poison reverse
 
 from __future__ import annotations
 
+from typing import dataclass_transform
 
+import jax
 import jax.numpy as jnp
 
+from ..array_types import HostOrDevice
 from ..numerics import safe_sqrt
 from .base import Context, TermValue, cost_term
 from .colregs import violation
@@ -179,12 +182,12 @@ def transitional_indicator(ctx: Context, d_cl=DEFAULT_D_CL):
     ap = tuple(v[1:, None, :] for v in (a.x, a.y, a.chi))                  # [K, 1, 1]
     side = passing_side(o[0], o[1], o[2], x[0], x[1])                      # [O·S, B]
     side0 = passing_side(ap[0], ap[1], ap[2], x[0], x[1])                  # [O·S, 1]
-    own0 = tuple(v[0, 0] for v in (ctx.own.x, ctx.own.y, ctx.own.chi, ctx.own.U))     # present state, row 0
+    own0 = [v[0, 0] for v in (ctx.own.x, ctx.own.y, ctx.own.chi, ctx.own.U)]     # present state, row 0
     n_t = ctx.own.x.shape[0]
     n_os = x[0].shape[1]
-    tg0 = tuple(v.reshape(n_t, n_os)[0] for v in (ctx.obstacles.x, ctx.obstacles.y, ctx.obstacles.chi,
-                                                   ctx.obstacles.U))
-    situation = transitional_situation(*own0, *tg0, d_cl)                  # [O·S]
+    tg0 = [v.reshape(n_t, n_os)[0] for v in (ctx.obstacles.x, ctx.obstacles.y, ctx.obstacles.chi, ctx.obstacles.U)]
+    situation = transitional_situation(own0[0], own0[1], own0[2], own0[3], tg0[0], tg0[1], tg0[2], tg0[3],
+                                       d_cl)                                # [O·S]
     return (situation[:, None] & (side * side0 < 0)).astype(ctx.own.x.dtype)
 
 
@@ -268,21 +271,26 @@ def sbmpc_costs(own_traj, target_trajs, t, *, aggregation: str = "max", kappa=DE
 
 
 # ------------------------------------------------------------------------------------------ cost terms
+@dataclass_transform()      # for type checkers: see cost_term
 def smooth_cost_term(*static: str):
     """``cost_term(static=static)``: the smooth terms keep their mode strings and sizes static."""
     return cost_term(static=static)
 
 
-def context_pairs(ctx: Context):
+#: Four arrays (x, y, χ, U) of the own-ship or the targets, as :func:`context_pairs` returns them.
+Quad = tuple[jax.Array, jax.Array, jax.Array, jax.Array]
+
+
+def context_pairs(ctx: Context) -> tuple[Quad, Quad, jax.Array, HostOrDevice]:
     """Time-major pair arrays of a :class:`Context` for τ ≥ τ₀ + T_s: own-ship ``(x, y, χ, U) [K, 1, B]``,
     targets ``(x, y, χ, U) [K, O·S, 1]`` (every (obstacle, scenario) is a point target; Smooth-SBMPC has one
     scenario per target), ``t [K, 1, 1]`` and the target mask ``valid [O·S]`` (``ctx.scen_valid``)."""
     own, obs = ctx.own, ctx.obstacles
     n_t = own.x.shape[0]
     n_os = obs.x.shape[1] * obs.x.shape[2]
-    o = tuple(a[1:, None, :] for a in (own.x, own.y, own.chi, own.U))
-    x = tuple(a.reshape(n_t, n_os)[1:, :, None] for a in (obs.x, obs.y, obs.chi, obs.U))
-    return o, x, ctx.t[1:, None, None], ctx.scen_valid.reshape(n_os)
+    ox, oy, ochi, ou = (a[1:, None, :] for a in (own.x, own.y, own.chi, own.U))
+    tx, ty, tchi, tu = (a.reshape(n_t, n_os)[1:, :, None] for a in (obs.x, obs.y, obs.chi, obs.U))
+    return (ox, oy, ochi, ou), (tx, ty, tchi, tu), ctx.t[1:, None, None], ctx.scen_valid.reshape(n_os)
 
 
 def term_value(ctx: Context, h, aggregation: str, detail: str) -> TermValue:

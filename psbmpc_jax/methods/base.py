@@ -282,11 +282,11 @@ class Method:
             scenario's preset takes the preset's) when the file gives none of :attr:`tuning_sections`.
     """
 
-    name: ClassVar[str] = ""
-    description: ClassVar[str] = ""
+    name: str = ""                  # class attributes; a wrapper (psbmpc_refine) sets them per instance
+    description: str = ""
     own_ship_only: ClassVar[bool] = False
     diagnostics: ClassVar[bool] = False
-    tuning_sections: ClassVar[tuple] = ()
+    tuning_sections: tuple = ()
     design_ship: ClassVar[DesignShip | None] = None
 
     def design_for(self, mpc) -> DesignShip | None:
@@ -294,17 +294,27 @@ class Method:
         :class:`~psbmpc_jax.scenario.MPCSpec`, or None): :attr:`design_ship`."""
         return self.design_ship
 
+    def untuned(self, given_sections, mpc=None) -> str | None:
+        """The scale-bearing settings the file leaves at their defaults, as the error names them
+        (``"mpc.informed"``), or None when the file tunes the method for its ships (gives one of
+        :attr:`tuning_sections`; ``given_sections``: the ``mpc`` keys it gives, ``mpc``: the scenario's
+        :class:`~psbmpc_jax.scenario.MPCSpec`, or None)."""
+        if any(k in given_sections for k in self.tuning_sections):
+            return None
+        return " / ".join(f"mpc.{k}" for k in self.tuning_sections)
+
     def check_fit(self, ships, given_sections, mpc=None) -> None:
         """ValueError when this method's default settings do not fit one of ``ships`` (each with ``name``,
-        ``length`` [m] and ``U_d`` [m/s]): the file gives none of :attr:`tuning_sections` (``given_sections``:
-        the ``mpc`` keys it gives) and a ship lies outside the design ship (:meth:`design_for` of ``mpc``)."""
+        ``length`` [m] and ``U_d`` [m/s]): the file leaves its scale-bearing settings at their defaults
+        (:meth:`untuned`; ``given_sections``: the ``mpc`` keys it gives) and a ship lies outside the design ship
+        (:meth:`design_for` of ``mpc``)."""
         design = self.design_for(mpc)
-        if design is None or any(k in given_sections for k in self.tuning_sections):
+        sections = None if design is None else self.untuned(given_sections, mpc)
+        if design is None or sections is None:
             return
         for ship in ships:
             why = design.misfit(float(ship.length), float(ship.U_d))
             if why:
-                sections = " / ".join(f"mpc.{k}" for k in self.tuning_sections)
                 raise ValueError(
                     f"method {self.name} on ship {ship.name!r}: its default settings ({sections} not in the file) "
                     f"were tuned for {design.source} and fit "

@@ -25,6 +25,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import asdict
 
+from ..design_ship import SCALE_PARAMS
 from .base import BuildContext, DesignShip, Method
 from .colregs_option_settings import (OPTION_METHODS, ColregsOptionSpec, option_in_use, parse_colregs_option,
                                       ship_option)
@@ -136,6 +137,14 @@ class Psbmpc(Method):
 
         return None if mpc is None else get_preset(mpc.preset).design_ship
 
+    def untuned(self, given_sections, mpc=None) -> str | None:
+        """The preset's scale-dependent parameters (:data:`psbmpc_jax.design_ship.SCALE_PARAMS`) that
+        ``mpc.params`` does not give, or None when it gives all of them: a weight alone (``K_coll``,
+        ``K_chi_port``) does not tune the preset for another ship."""
+        given = () if mpc is None else mpc.given_params
+        missing = [k for k in SCALE_PARAMS if k not in given]
+        return f"mpc.params {', '.join(missing)}" if missing else None
+
     def build(self, scenario, ships, context: BuildContext):
         from .grid import GridController
 
@@ -169,9 +178,17 @@ class Refined(Method):
     def design_for(self, mpc) -> DesignShip | None:
         return self.base.design_for(mpc)
 
+    def untuned(self, given_sections, mpc=None) -> str | None:
+        return self.base.untuned(given_sections, mpc)
+
     def build(self, scenario, ships, context: BuildContext):
         option_groups(scenario, ships, self.name)   # refused when the option is on for a ship (not in the refinement)
+        from .grid import GridController
+
         controller = self.base.build(scenario, ships, context)
+        if not isinstance(controller, GridController):
+            raise TypeError(f"method {self.name} refines a grid search; method {self.base.name} built a "
+                            f"{type(controller).__name__}, not a GridController")
         controller.enable_refinement()
         controller.method = self.name
         return controller
@@ -335,6 +352,7 @@ def _smooth_section(d, ctx: SectionContext) -> SmoothSpec:
 
 def _refine_section(d, ctx: SectionContext) -> RefineSpec:
     """``mpc.refine``, with ``mpc.fis.e_cl_m`` / ``n_y`` when the file gives them (the refinement's FIS)."""
+    assert ctx.config is not None, "mpc.refine is parsed after the PSB-MPC configuration (after_config)"
     refine = parse_refine(d, ctx.config)
     fis, given = ctx.parsed["fis"], ctx.mpc.get("fis") or {}
     return dataclasses.replace(refine, fis_e_cl=fis.e_cl if "e_cl_m" in given else None,

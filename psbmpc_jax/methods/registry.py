@@ -24,6 +24,7 @@ from typing import Callable
 
 import numpy as np
 
+from ..params import PlannerConfig
 from .base import BuildContext, Controller, Decision, Method, Observation
 
 #: The entry point group packages register their methods in.
@@ -130,7 +131,7 @@ class SectionContext:
     mpc: dict
     method: str
     period: float
-    config: object = None
+    config: PlannerConfig | None = None
     parsed: dict = field(default_factory=dict)
 
 

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from typing import Any
 
 from .. import checks
 from ..checks import integer, show
@@ -150,7 +151,7 @@ def parse_sbmpc(d) -> SbmpcSettings:
     base = SBMPC_PRESETS.get(preset) if isinstance(preset, str) else None
     if base is None:
         raise ValueError(f"{w}.preset must be one of {', '.join(SBMPC_PRESETS)}, got {show(preset)}")
-    kw = {}
+    kw: dict[str, Any] = {}          # field name -> its parsed value (fields of several types)
     for key, name in _SBMPC_KEYS.items():
         if key not in d or key == "preset":
             continue
@@ -179,11 +180,11 @@ def sbmpc_terms(s: SbmpcSettings = SbmpcSettings(), *, with_grounding: bool | No
     """The original SB-MPC: the joint max over (obstacle, k ≥ 1) of K_coll‖Δv‖²R + κμ (+ λT when
     ``s.lambda_T > 0``) (crisp R, Boolean μ), plus Γ, plus the grounding term when ``with_grounding`` (default
     ``s.grounding``)."""
-    from ..costs.sbmpc import SbmpcHazardTerm
+    from ..costs.sbmpc import DEFAULT_LAMBDA_T, SbmpcHazardTerm
 
     hazard = SbmpcHazardTerm(d_safe=s.d_safe, K_coll=s.K_coll, p=s.p, q=s.q, kappa=s.kappa, d_cl=s.d_cl,
                              aggregation="max", risk="crisp", colregs="boolean", transitional=s.lambda_T > 0,
-                             **({"lambda_T": s.lambda_T} if s.lambda_T > 0 else {}))
+                             lambda_T=s.lambda_T if s.lambda_T > 0 else DEFAULT_LAMBDA_T)
     return _with_grounding((hazard, manoeuvring_term(s)), s.grounding if with_grounding is None else with_grounding)
 
 

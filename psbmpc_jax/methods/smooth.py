@@ -169,7 +169,8 @@ class SmoothStepPlanner:
                                              self.settings))
             cost = np.asarray(init.cost[0], self.dtype)
             return StepPlan(np.asarray(init.controls[0]), np.asarray(init.controls[:n]), np.asarray(init.psi), cost,
-                            cost, f(0.0), np.int32(1), np.int32(0), np.int32(0), np.bool_(True))
+                            cost, np.asarray(f(0.0)), np.asarray(1, np.int32), np.asarray(0, np.int32),
+                            np.asarray(0, np.int32), np.asarray(True))
         st = jax.device_get(smooth_sbmpc_step(state0, route, targets, last, self.land, self.buffered,
                                               weights=self.weights, model=self.model, settings=self.settings,
                                               solver=self.solver))

@@ -5,6 +5,7 @@ with the refinement: the ``mpc.smooth``, ``mpc.fis`` and ``mpc.solver`` sections
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 
 from ..checks import integer, multiple_of
@@ -134,7 +135,7 @@ def parse_smooth(d) -> SmoothSpec:
     w = "mpc.smooth"
     d = as_mapping(d, w)
     check_keys(d, _SMOOTH_KEYS, w)
-    kw = {}
+    kw: dict[str, Any] = {}          # field name -> its parsed value (fields of several types)
     for key, name in (("T_init_s", "T_init"), ("T_mpc_s", "T_mpc"), ("dt_s", "dt"),
                       ("corridor_half_width_m", "corridor_half_width")):
         if key in d:
@@ -176,7 +177,7 @@ def parse_fis(d) -> FisSpec:
     w = "mpc.fis"
     d = as_mapping(d, w)
     check_keys(d, _FIS_KEYS, w)
-    kw = {}
+    kw: dict[str, Any] = {}          # field name -> its parsed value (fields of several types)
     if "d_cl_m" in d:
         kw["d_cl"] = as_number(d["d_cl_m"], f"{w}.d_cl_m", gt=0)
     if "e_cl_m" in d:
@@ -194,7 +195,7 @@ def parse_solver(d) -> SolverSpec:
     w = "mpc.solver"
     d = as_mapping(d, w)
     check_keys(d, _SOLVER_KEYS, w)
-    kw = {}
+    kw: dict[str, Any] = {}          # field name -> its parsed value (fields of several types)
     for key in ("max_outer", "max_inner"):
         if key in d:
             kw[key] = integer(d[key], f"{w}.{key}", ge=1, le=MAX_SOLVER_ITERATIONS)

@@ -31,6 +31,7 @@ import jax.numpy as jnp
 import optax
 from jax import lax
 
+from ..jitting import with_jitted
 from . import boxmap
 from .settings import (CONVERGED, INFEASIBLE, MAX_ITER, NON_FINITE, MultistartResult, Safeguarded,
                        SolverResult, SolverSettings)
@@ -296,6 +297,7 @@ def _multistart_jit(f, u0s, lower, upper, eq, ineq, settings, args, batch="vmap"
                                                          jnp.asarray(settings.tol, u0s.dtype)))
 
 
+@with_jitted(_solve_jit)
 def solve_docp(f: Callable, u0, *, lower, upper, eq: Callable | None = None, ineq: Callable | None = None,
                settings: SolverSettings = _DEFAULT, args=None) -> SolverResult:
     """Solve min f(u, args) s.t. eq(u, args) = 0, ineq(u, args) <= 0, lower <= u <= upper.
@@ -323,6 +325,7 @@ def solve_docp(f: Callable, u0, *, lower, upper, eq: Callable | None = None, ine
     return _solve_jit(f, u0, lower, upper, eq, ineq, settings, args)
 
 
+@with_jitted(_multistart_jit)
 def solve_multistart(f: Callable, u0s, *, lower, upper, eq: Callable | None = None, ineq: Callable | None = None,
                      settings: SolverSettings = _DEFAULT, args=None, batch: str = "vmap") -> MultistartResult:
     """:func:`solve_docp` from each of the starts ``u0s [S, ...]`` (bounds, args and settings shared).
@@ -342,8 +345,6 @@ def solve_multistart(f: Callable, u0s, *, lower, upper, eq: Callable | None = No
     return _multistart_jit(f, u0s, lower, upper, eq, ineq, settings, args, batch=batch)
 
 
-solve_docp.jitted = _solve_jit
-solve_multistart.jitted = _multistart_jit
 
 
 def best_index(f, violation, tol):
@@ -408,6 +409,7 @@ def _safeguard(result: SolverResult, u_warm, f: Callable, *, lower=None, upper=N
 _safeguard_jit = jax.jit(_safeguard, static_argnames=_STATIC_FNS)
 
 
+@with_jitted(_safeguard_jit)
 def safeguard(result: SolverResult, u_warm, f: Callable, *, lower=None, upper=None, eq: Callable | None = None,
               ineq: Callable | None = None, args=None, tol=1e-3) -> Safeguarded:
     """Keep the solver's result only if it is at least as good as the warm start.
@@ -429,9 +431,6 @@ def safeguard(result: SolverResult, u_warm, f: Callable, *, lower=None, upper=No
     return _safeguard_jit(result, u_warm, f, lower=_bound(lower, -jnp.inf, shape, u_warm.dtype, "lower"),
                           upper=_bound(upper, jnp.inf, shape, u_warm.dtype, "upper"), eq=eq, ineq=ineq,
                           args=_as_arrays(args), tol=_as_arrays(tol))
-
-
-safeguard.jitted = _safeguard_jit
 
 
 __all__ = ["solve_docp", "solve_multistart", "safeguard", "max_violation", "best_index", "BATCH_MODES"]

@@ -221,7 +221,8 @@ GRID_SEARCH_N_PS = simulation_time.GRID_SEARCH_N_PS
 
 def _check_method_fit(mpc, own, targets) -> None:
     """Refuse a method whose default settings were tuned for ships of another scale than the ones that run it
-    (:meth:`psbmpc_jax.methods.Method.check_fit`; a file that gives the method's own section is not checked)."""
+    (:meth:`psbmpc_jax.methods.Method.check_fit`; a file that tunes the method for its ships, by the method's
+    own section or, for the grid search, every scale-dependent parameter under ``mpc.params``, is not checked)."""
     runs: dict = {mpc.method: [own]}
     for t in targets:
         if t.colav != "none":

@@ -115,7 +115,7 @@ def read_mpc(d, dt: float) -> MPCSpec:
     _sections(d, ctx, after_config=True)
     return MPCSpec(preset=preset, config=cfg, params=prm, behaviours=np.asarray(behaviours, dtype=float),
                    n_ps=int(n_ps), period=period, method=method, sections=dict(ctx.parsed),
-                   given=tuple(k for k in (*SECTIONS, "params") if k in d))
+                   given=tuple(k for k in (*SECTIONS, "params") if k in d), given_params=tuple(params_in))
 
 
 def read_evaluation(d) -> EvalParams:

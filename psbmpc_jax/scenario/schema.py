@@ -138,6 +138,9 @@ class MPCSpec:
         given: the keys of the sections the file gives, and ``"params"`` when it gives ``mpc.params`` (the
             others are defaults; a method whose tuning sections are all defaults is checked against the ship it was tuned for,
             :meth:`psbmpc_jax.methods.Method.check_fit`).
+        given_params: the ``mpc.params`` keys the file gives (as written; the grid search is checked against its
+            preset's design ship unless they include every scale-dependent parameter,
+            :data:`psbmpc_jax.design_ship.SCALE_PARAMS`).
     """
 
     preset: str
@@ -149,6 +152,7 @@ class MPCSpec:
     method: str = "psbmpc"
     sections: dict = field(default_factory=dict)
     given: tuple = ()
+    given_params: tuple = ()
 
     def __getattr__(self, name: str):
         """A method's section by its key (the file's, else the section's default)."""

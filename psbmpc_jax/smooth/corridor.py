@@ -46,6 +46,7 @@ from jax import lax
 from shapely.geometry import LineString, MultiPolygon, Point, Polygon
 from shapely.ops import unary_union
 
+from ..array_types import HostOrDevice
 from ..packing import Capacities, ChartArrays, pack_world
 from .land_hit import (DEFAULT_BLOCK, as_chart, box_near, check_points, check_radius, concrete_float,
                        crossings, cull_tolerance, edge_blocks, may_cross, ray_edge_t)
@@ -70,12 +71,12 @@ class Corridor(NamedTuple):
         inside: ``bool [N+1]``: P_j lies in the buffered land (then lower = upper = 0).
     """
 
-    origin: jax.Array
-    tangent: jax.Array
-    normal: jax.Array
-    lower: jax.Array
-    upper: jax.Array
-    inside: jax.Array
+    origin: HostOrDevice
+    tangent: HostOrDevice
+    normal: HostOrDevice
+    lower: HostOrDevice
+    upper: HostOrDevice
+    inside: HostOrDevice
 
 
 # ------------------------------------------------------------------------------------------ validation

@@ -40,6 +40,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..array_types import HostOrDevice
 from ..checks import control_plan
 from ..costs.manoeuvring import gamma_sequence
 from ..costs.sbmpc import sbmpc_costs
@@ -210,8 +211,8 @@ class Previous(NamedTuple):
         valid: bool scalar; False (no previous plan, e.g. at the first update): the start is a behaviour instead.
     """
 
-    controls: jax.Array
-    valid: jax.Array
+    controls: HostOrDevice
+    valid: HostOrDevice
 
 
 def warm_starts(init: InitResult, n_starts: int, n: int, previous: Previous | None = None, warm=None):

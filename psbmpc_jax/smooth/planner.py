@@ -30,6 +30,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax import lax
 
+from ..array_types import HostOrDevice
 from ..methods.smooth_settings import SmoothSpec
 from ..nlp import SolverSettings
 from ..packing import pack_world, snap_origin
@@ -48,7 +49,7 @@ DTYPES = ("float32", "float64")
 
 class SmoothPlan(NamedTuple):
     """The result of :meth:`SmoothSBMPCPlanner.plan` (host NumPy arrays; :meth:`~SmoothSBMPCPlanner.plan_batch`
-    adds a leading run axis ``[R]`` to every field).
+    adds a leading run axis ``[R]`` to every field; JAX arrays inside the jitted plan, before they come back).
 
     Attributes:
         apply: the offsets to apply now ``[2]`` (U_m, χ_m).
@@ -66,16 +67,16 @@ class SmoothPlan(NamedTuple):
             terminal-LOS frame; ``init_only``: True).  ``apply`` and ``controls`` are route-frame offsets always.
     """
 
-    apply: np.ndarray
-    controls: np.ndarray
-    psi: np.ndarray
-    cost: np.ndarray
-    warm_cost: np.ndarray
-    violation: np.ndarray
-    used_warm: np.ndarray
-    status: np.ndarray
-    iterations: np.ndarray
-    route_frame: np.ndarray
+    apply: HostOrDevice
+    controls: HostOrDevice
+    psi: HostOrDevice
+    cost: HostOrDevice
+    warm_cost: HostOrDevice
+    violation: HostOrDevice
+    used_warm: HostOrDevice
+    status: HostOrDevice
+    iterations: HostOrDevice
+    route_frame: HostOrDevice
 
 
 # ------------------------------------------------------------------------------------------ device side
@@ -255,7 +256,7 @@ class SmoothSBMPCPlanner:
         self.previous_start = bool(previous_start)
         if str(dtype) not in DTYPES:
             raise ValueError(f"dtype must be one of {DTYPES}, got {dtype!r}")
-        if str(dtype) == "float64" and not jax.config.jax_enable_x64:
+        if str(dtype) == "float64" and not jax.config.jax_enable_x64:  # type: ignore[attr-defined]  # jax's Config stub lacks its flags
             raise ValueError("dtype 'float64' needs 64-bit JAX (jax.config.update('jax_enable_x64', True))")
         self.n_starts, self.batch, self.init_only, self.dtype = int(n_starts), batch, bool(init_only), np.dtype(dtype)
         self.polygons = polygon_rings(polygons)
@@ -301,8 +302,8 @@ class SmoothSBMPCPlanner:
         plan = jax.device_get(plan)
         psi = np.asarray(plan.psi, np.float64).copy()
         psi[..., :2] += origin
-        return SmoothPlan(*(np.asarray(getattr(plan, k)) for k in ("apply", "controls")), psi,
-                          *(np.asarray(getattr(plan, k)) for k in SmoothPlan._fields[3:]))
+        host = {k: np.asarray(getattr(plan, k)) for k in SmoothPlan._fields}
+        return SmoothPlan(**{**host, "psi": psi})
 
     def _previous(self, previous, lead: tuple):
         """``previous`` (None, or ``lead + [N_mpc, 2]`` with NaN rows for runs without one) as a

@@ -25,6 +25,7 @@ import shapely
 from shapely.geometry import MultiPolygon, Polygon
 from shapely.ops import unary_union
 
+from ..array_types import HostOrDevice
 from ..numerics import safe_sqrt
 from ..smooth.corridor import ring_arrays
 
@@ -40,8 +41,8 @@ class StaticCircles(NamedTuple):
     the plain constructor does not check (it is also what JAX's pytree machinery calls).
     """
 
-    centres: jax.Array
-    radii: jax.Array
+    centres: HostOrDevice
+    radii: HostOrDevice
 
     @classmethod
     def build(cls, centres, radii) -> "StaticCircles":
@@ -67,7 +68,7 @@ class StaticCircles(NamedTuple):
         return cls.build(centres, radii)
 
     @property
-    def count(self) -> int:
+    def n_circles(self) -> int:
         """Number of circles n."""
         return int(np.shape(self.radii)[0])
 
@@ -99,11 +100,11 @@ def check_circles(circles, name: str = "circles") -> StaticCircles:
 
 def concat_circles(*items: StaticCircles) -> StaticCircles:
     """Concatenate several :class:`StaticCircles` (validated)."""
-    items = [check_circles(c, f"items[{k}]") for k, c in enumerate(items)]
-    if not items:
+    checked = [check_circles(c, f"items[{k}]") for k, c in enumerate(items)]
+    if not checked:
         return StaticCircles.empty()
-    return StaticCircles(np.concatenate([np.asarray(c.centres, float).reshape(-1, 2) for c in items]),
-                         np.concatenate([np.asarray(c.radii, float).reshape(-1) for c in items]))
+    return StaticCircles(np.concatenate([np.asarray(c.centres, float).reshape(-1, 2) for c in checked]),
+                         np.concatenate([np.asarray(c.radii, float).reshape(-1) for c in checked]))
 
 
 # ------------------------------------------------------------------------------------------ from YAML
@@ -163,7 +164,7 @@ def as_land_polygons(land_polygons, name: str = "land_polygons") -> list:
         land_polygons = [land_polygons]
     if isinstance(land_polygons, np.ndarray) and land_polygons.ndim == 2:
         land_polygons = [land_polygons]        # one ring given bare
-    out = []
+    out: list[Polygon | MultiPolygon] = []
     for j, p in enumerate(land_polygons):
         if isinstance(p, (Polygon, MultiPolygon)):
             g = p
