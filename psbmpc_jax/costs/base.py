@@ -77,7 +77,7 @@ class TermValue(NamedTuple):
     counters: dict = {}
 
 
-@dataclass_transform()      # for type checkers: the decorated class is a dataclass (its fields are __init__'s)
+@dataclass_transform(frozen_default=True)  # for type checkers: a frozen dataclass (its fields are __init__'s)
 def cost_term(cls=None, *, static: tuple[str, ...] = ()):
     """Class decorator: a frozen dataclass whose fields are the term's parameters, registered as a pytree.
 

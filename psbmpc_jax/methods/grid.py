@@ -144,7 +144,9 @@ class GridController:
                  n_ps: int | None = None, method: str = "psbmpc", informed: bool = False,
                  d_init: float | None = None, devices=None, freeze=None):
         self.ships, self.mpc, self.method = tuple(int(i) for i in ships), mpc, method
-        self.freeze, self.d_safe = freeze, None if freeze is None else float(params.d_safe)
+        self.freeze = freeze
+        # the held-course option's engagement radii (only read when the option freezes a course)
+        self.d_safe = float("nan") if freeze is None else float(params.d_safe)
         self.refine_ships = tuple(int(i) for i in refine_ships)
         self.n_ps = n_ps
         self.informed, self.d_init = informed, d_init
