@@ -21,13 +21,15 @@ horizon) and K_coll (``mpc.informed.term.K_coll``).  Every other number is the s
 per-run numbers are those of ``run.py`` (:func:`run.records`; the same seeds); the simulator's per-run output
 folders are not written (only the table).  It writes ``comparison.json`` (per cell: the aggregate, the runs for
 which the finding holds, the per-run records) and ``comparison.md`` (the tables and the cells in which all four
-findings hold) into a new folder.
+findings hold) into a new folder.  ``comparison.json`` is written (atomically) after every cell with
+``"complete": false``; ``--resume`` continues such an interrupted run in its folder, at the same commit.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib.util
+import json
 import pathlib
 import sys
 import time
@@ -35,6 +37,8 @@ import time
 HERE = pathlib.Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))   # experiments/: comparison.py
 from comparison import finish, start, utc_stamp  # noqa: E402
+
+from psbmpc_jax.safe_io import atomic_write_text  # noqa: E402
 
 
 def _study_runner():
@@ -57,8 +61,8 @@ FINDINGS = {
                     "no course offset above 15° and closest approach ≥ 500 m"),
 }
 CLASSIFY = ("velocity", "sectors_t0")
-DEFAULT_KAPPA = (0.0, 0.5, 1.0, 2.0, 3.0)
-DEFAULT_K_COLL = (0.25, 0.5, 1.0, 2.0)
+DEFAULT_KAPPA = (0.0, 1.0, 2.0, 3.0)
+DEFAULT_K_COLL = (0.25, 0.5, 2.0)
 #: the give-way-with-route-exchange rule: largest course offset [deg], closest approach [m]
 KEEPS_ON_MAX_OFFSET_DEG = 15.0
 KEEPS_ON_MIN_DISTANCE_M = 500.0
@@ -155,6 +159,8 @@ def main(argv=None) -> int:
     p.add_argument("--out", default=None,
                    help="output folder (default: a new results_kappa_<UTC stamp> folder next to this script)")
     p.add_argument("--force", action="store_true", help="write into an --out folder that already holds results")
+    p.add_argument("--resume", action="store_true",
+                   help="reuse the cells of an interrupted run in --out (same commit, runs and grid)")
     args = p.parse_args(argv)
     if args.runs < 1:
         p.error(f"--runs >= 1 expected, got {args.runs}")
@@ -166,8 +172,10 @@ def main(argv=None) -> int:
     from psbmpc_jax.sim import simulate
 
     grid = {"findings": list(findings), "classify": list(classify), "kappa": list(kappas), "K_coll": list(kcolls)}
+    done = resumable(args.out, args.runs, grid) if args.resume else {}
     out, doc = start(args.out or HERE / f"results_kappa_{utc_stamp()}", HERE,
-                     force=args.force, runs=args.runs, grid=grid)
+                     force=args.force or args.resume, runs=args.runs, grid=grid)
+    doc["complete"] = False
     t_all = time.perf_counter()
     for f in findings:
         scenario, re_on, _, _ = FINDINGS[f]
@@ -175,15 +183,45 @@ def main(argv=None) -> int:
         for cl in classify:
             for kappa in kappas:
                 for kc in kcolls:
-                    sc = _informed(base, route_exchange=re_on, classify=cl,
-                                   term={**base.mpc.informed.term, "kappa": kappa, "K_coll": kc})
-                    res = simulate(sc, runs=args.runs)
-                    c = cell(f, records(res))
+                    c = done.get(f, {}).get(cl, {}).get(_fmt(kappa), {}).get(_fmt(kc))
+                    if c is None:
+                        sc = _informed(base, route_exchange=re_on, classify=cl,
+                                       term={**base.mpc.informed.term, "kappa": kappa, "K_coll": kc})
+                        c = cell(f, records(simulate(sc, runs=args.runs)))
                     doc["results"].setdefault(f, {}).setdefault(cl, {}).setdefault(_fmt(kappa), {})[_fmt(kc)] = c
                     print(f"{f} {cl} κ {_fmt(kappa)} K_coll {_fmt(kc)}: {cell_text(c)}", flush=True)
+                    atomic_write_text(out / "comparison.json", json.dumps(doc, indent=2) + "\n")   # checkpoint
+    doc["complete"] = True
     doc["wall_s"] = round(time.perf_counter() - t_all, 1)
     finish(out, doc, markdown(doc))
     return 0
+
+
+def resumable(out, runs: int, grid: dict) -> dict:
+    """The cells of an interrupted run in ``out`` (its checkpointed ``comparison.json``) to reuse: only when it
+    was made at this commit, with these runs and this grid and is marked incomplete; else ``SystemExit`` saying
+    why (cells of another commit or grid are never mixed into a table)."""
+    from psbmpc_jax.provenance import commit
+
+    if out is None:
+        raise SystemExit("--resume needs --out: the folder of the interrupted run")
+    path = pathlib.Path(out) / "comparison.json"
+    if not path.is_file():
+        return {}
+    try:
+        doc = json.loads(path.read_text())
+    except ValueError as exc:
+        raise SystemExit(f"--resume: {path} is not JSON ({exc}); give a new --out") from None
+    now = commit()
+    if doc.get("complete") is not False:
+        raise SystemExit(f"--resume: {path} is a finished table, not an interrupted one; give a new --out")
+    for key, want in (("commit", now), ("runs", runs), ("grid", grid)):
+        if doc.get(key) != want:
+            raise SystemExit(f"--resume: {path} has {key} {doc.get(key)!r}, this run {want!r}; cells of another "
+                             f"{key} are not mixed in: give a new --out")
+    if now == "unknown" or now.endswith("-dirty"):
+        raise SystemExit(f"--resume: the checkout is {now!r}; commit first so that the cells' source is known")
+    return doc.get("results", {})
 
 
 if __name__ == "__main__":
