@@ -1,7 +1,7 @@
 """What the study scripts share: where a run writes (a new folder, never over an earlier result), the provenance
 header of a comparison, and writing ``comparison.json`` / ``comparison.md``.
 
-Users: ``tengesdal2020/run.py``, ``akdag2022/run.py``, ``mahipala2023/run.py`` (the folder above theirs is put
+Users: ``tengesdal2020/run.py``, ``akdag2022/run.py`` and ``kappa_table.py``, ``mahipala2023/run.py`` (the folder above theirs is put
 on ``sys.path`` by each), ``compare_methods.py``, ``nidelva_refinement/stop_analysis.py`` and
 ``smooth_sbmpc/ablation.py``.
 """
@@ -60,8 +60,11 @@ def start(out, study: pathlib.Path, force: bool = False, **settings) -> tuple[pa
 
 
 def finish(folder: pathlib.Path, doc: dict, markdown: str) -> None:
-    """Write ``comparison.json`` and ``comparison.md`` and print the table."""
-    (folder / "comparison.json").write_text(json.dumps(doc, indent=2) + "\n")
-    (folder / "comparison.md").write_text(markdown)
+    """Write ``comparison.json`` and ``comparison.md`` (each atomically: complete or not at all) and print the
+    table."""
+    from psbmpc_jax.safe_io import atomic_write_text
+
+    atomic_write_text(folder / "comparison.json", json.dumps(doc, indent=2) + "\n")
+    atomic_write_text(folder / "comparison.md", markdown)
     print(markdown)
     print("wrote", folder)

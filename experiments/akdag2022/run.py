@@ -40,8 +40,9 @@ STUDY = pathlib.Path(__file__).resolve().parent
 
 
 def _informed(sc, **kw):
-    return dataclasses.replace(sc, mpc=dataclasses.replace(sc.mpc, informed=dataclasses.replace(sc.mpc.informed,
-                                                                                                  **kw)))
+    """``sc`` with its ``mpc.informed`` section's fields replaced by ``kw``."""
+    section = dataclasses.replace(sc.mpc.informed, **kw)
+    return dataclasses.replace(sc, mpc=dataclasses.replace(sc.mpc, sections={**sc.mpc.sections, "informed": section}))
 
 
 def _role(sc, role):
