@@ -41,8 +41,7 @@ STUDY = pathlib.Path(__file__).resolve().parent
 
 def _informed(sc, **kw):
     """``sc`` with its ``mpc.informed`` section's fields replaced by ``kw``."""
-    section = dataclasses.replace(sc.mpc.informed, **kw)
-    return dataclasses.replace(sc, mpc=dataclasses.replace(sc.mpc, sections={**sc.mpc.sections, "informed": section}))
+    return dataclasses.replace(sc, mpc=sc.mpc.with_section("informed", **kw))
 
 
 def _role(sc, role):

@@ -121,8 +121,7 @@ def main(argv=None) -> int:
         method, changes, scale["x"] = VARIANTS[name]
         sc = load_scenario(SCENARIO, method=method)
         if changes:
-            sc = dataclasses.replace(sc, mpc=dataclasses.replace(sc.mpc, smooth=dataclasses.replace(sc.mpc.smooth,
-                                                                                                   **changes)))
+            sc = dataclasses.replace(sc, mpc=sc.mpc.with_section("smooth", **changes))
         record.clear()
         t0 = time.perf_counter()
         res = simulate(sc, runs=args.runs, seed=args.seed, progress=False)

@@ -132,8 +132,8 @@ def main(argv=None) -> int:
     loaded = {(n, m): load_scenario(n, method=m) for n in names for m in METHODS}       # file errors first
     if overrides:
         try:
-            loaded = {k: dataclasses.replace(sc, mpc=dataclasses.replace(
-                sc.mpc, sbmpc=dataclasses.replace(sc.mpc.sbmpc, **overrides))) for k, sc in loaded.items()}
+            loaded = {k: dataclasses.replace(sc, mpc=sc.mpc.with_section("sbmpc", **overrides))
+                      for k, sc in loaded.items()}
         except (TypeError, ValueError) as exc:
             p.error(f"--sbmpc: {exc}")
     out, doc = start(args.out, STUDY, force=args.force, runs=args.runs, alteration_deg=args.alteration_deg,

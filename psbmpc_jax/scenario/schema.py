@@ -2,6 +2,7 @@
 and the names and limits the loader checks against."""
 
 from __future__ import annotations
+import dataclasses
 import pathlib
 from dataclasses import dataclass, field
 from typing import Any
@@ -164,6 +165,14 @@ class MPCSpec:
         if name in SECTIONS:
             return SECTIONS[name].default()
         raise AttributeError(f"MPCSpec has no attribute or section {name!r} (sections: {', '.join(SECTIONS)})")
+
+    def with_section(self, name: str, **changes) -> "MPCSpec":
+        """A copy with the fields ``changes`` of section ``name`` replaced (the section's own validation runs;
+        ``ValueError`` for an unknown section, ``TypeError`` for an unknown field)."""
+        if name not in SECTIONS:
+            raise ValueError(f"MPCSpec has no section {name!r} (sections: {', '.join(SECTIONS)})")
+        section = dataclasses.replace(getattr(self, name), **changes)
+        return dataclasses.replace(self, sections={**self.sections, name: section})
 
 
 @dataclass(frozen=True)
