@@ -13,8 +13,11 @@ the trace+lower seconds and of the compile seconds, and the StableHLO line count
 point with that tree's package too, in the same rounds (``tree``: ``new`` / ``old``): a before/after in one
 interleaved run.  ``--flags`` and ``--searches`` pick a subset (comma-separated).
 
+``--program suite_solve`` / ``suite_refine`` compiles the test suite's shared solve / refinement instead
+(tests/conftest.py's configuration, float64; run with ``--flags o0``, the suite's flag).
+
 Usage: PYTHONPATH=. python benchmarks/bench_compile_search.py [--rounds 2] [--n-cbs 1014] [--baseline DIR]
-[--flags default,o0] [--searches culled,bounded] [--out DIR]
+[--flags default,o0] [--searches culled,bounded] [--program solve] [--out DIR]
 """
 
 from __future__ import annotations
@@ -30,9 +33,53 @@ import time
 FLAGS = {"default": "", "o0": "--xla_backend_optimization_level=0",
          "o0_legacy": "--xla_backend_optimization_level=0 --xla_cpu_use_fusion_emitters=false"}
 SEARCHES = ("culled", "bounded")
+#: ``solve``: the islands situation above; ``suite_solve`` / ``suite_refine``: the test suite's shared solve and
+#: refinement programs (what most of its compile time goes to).
+PROGRAMS = ("solve", "suite_solve", "suite_refine")
 
 
-def child(search: str, n_cbs: int) -> None:
+def suite_child(program: str, search: str) -> None:
+    """The test suite's shared configuration (tests/conftest.py: the 30-behaviour table padded to 64, ``CAPS``,
+    T 20 s, dt 0.5 s, float64): its ``solve``, or the refinement of test_refine.py (2 starts, 10 s horizon)."""
+    import jax
+
+    jax.config.update("jax_enable_x64", True)
+    import jax.numpy as jnp
+    import numpy as np
+
+    sys.path.insert(0, os.path.join(os.getcwd(), "tests"))
+    from conftest import CAPS, SMALL_BEHAVIOURS, pad_arrays, random_situation
+    from psbmpc_jax import Planner, PlannerConfig
+    from psbmpc_jax.evaluate import DEFAULT_TERMS
+    from psbmpc_jax.refine import RefineSettings, _refine_jit, previous_plan
+    from psbmpc_jax.solve import solve
+
+    config = PlannerConfig(T=20.0, dt=0.5, dtype="float64", grounding_search=search)
+    planner = Planner(config, behaviours=SMALL_BEHAVIOURS)
+    inputs, state, params, samples = planner.prepare(random_situation(3, T=20.0), None)
+    inputs = pad_arrays(inputs, **CAPS, junk=False)
+    t0 = time.perf_counter()
+    if program == "suite_solve":
+        lowered = solve.lower(inputs, state, params, samples, config=config)
+    else:
+        plan, _, ev = solve(inputs, state, params, samples, config=config)
+        s = RefineSettings(n_starts=2, horizon=10.0)
+        f64 = np.float64
+        args = (inputs, jnp.asarray(plan.best, jnp.int32), jnp.asarray(state.last_offsets, f64), params, samples,
+                ev, s.solver, jnp.asarray(s.path_eps, f64), jnp.asarray(s.fis_e_cl, f64), DEFAULT_TERMS,
+                previous_plan(None, config.n_steps, f64))
+        t0 = time.perf_counter()
+        lowered = _refine_jit.lower(*args, config=config, static=s.static(config))
+    t1 = time.perf_counter()
+    lowered.compile()
+    t2 = time.perf_counter()
+    print(json.dumps({"lower_s": t1 - t0, "compile_s": t2 - t1, "hlo_lines": lowered.as_text().count("\n"),
+                      "best": -1}))
+
+
+def child(search: str, n_cbs: int, program: str = "solve") -> None:
+    if program != "solve":
+        return suite_child(program, search)
     import jax
 
     sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
@@ -62,12 +109,13 @@ def main(argv=None) -> int:
     ap.add_argument("--baseline", default=None, help="checkout of another commit, measured in the same rounds")
     ap.add_argument("--flags", default=",".join(FLAGS), help="comma-separated subset of " + ", ".join(FLAGS))
     ap.add_argument("--searches", default=",".join(SEARCHES), help="comma-separated subset of " + ", ".join(SEARCHES))
+    ap.add_argument("--program", default="solve", choices=PROGRAMS, help="the program compiled (PROGRAMS)")
     ap.add_argument("--child", choices=SEARCHES, help=argparse.SUPPRESS)
     a = ap.parse_args(argv)
     if a.rounds < 1:
         ap.error("--rounds must be >= 1")
     if a.child:
-        child(a.child, a.n_cbs)
+        child(a.child, a.n_cbs, a.program)
         return 0
     sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
     from _common import environment_meta, write_results
@@ -88,7 +136,7 @@ def main(argv=None) -> int:
         for (tree, flags, search), out in runs.items():
             env = dict(os.environ, XLA_FLAGS=FLAGS[flags], PYTHONPATH=trees[tree])
             p = subprocess.run([sys.executable, os.path.abspath(__file__), "--child", search, "--n-cbs",
-                                str(a.n_cbs)], env=env, capture_output=True, text=True, timeout=900,
+                                str(a.n_cbs), "--program", a.program], env=env, capture_output=True, text=True, timeout=900,
                                cwd=trees[tree])
             if p.returncode != 0:
                 raise SystemExit(f"{tree}/{flags}/{search}: child failed ({p.returncode}): {p.stderr[-2000:]}")
@@ -100,14 +148,14 @@ def main(argv=None) -> int:
     for (tree, flags, search), recs in runs.items():
         lo, co = [x["lower_s"] for x in recs], [x["compile_s"] for x in recs]
         points.append({"tree": tree, "tree_path": trees[tree], "flags": flags, "xla_flags": FLAGS[flags],
-                       "grounding_search": search, "n_cbs": a.n_cbs,
+                       "grounding_search": search, "n_cbs": a.n_cbs, "program": a.program,
                        "hlo_lines": recs[0]["hlo_lines"], "best": sorted({x["best"] for x in recs}),
                        "lower_median_s": statistics.median(lo), "lower_min_s": min(lo), "lower_max_s": max(lo),
                        "compile_median_s": statistics.median(co), "compile_min_s": min(co),
                        "compile_max_s": max(co), "n": len(recs)})
     meta = environment_meta("compile time of one solve by grounding search and XLA flags", rounds=a.rounds,
                             schedule="interleaved, one fresh process per measurement", load_avg=os.getloadavg())
-    write_results(a.out, "compile_search", meta, points)
+    write_results(a.out, "compile_search" if a.program == "solve" else f"compile_{a.program}", meta, points)
     return 0
 
 
