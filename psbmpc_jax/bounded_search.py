@@ -119,41 +119,30 @@ def _keep_top_k(values, k):
     return idx, jnp.max(values, axis=0), values
 
 
-def _exact(x, y, rows, n_chunks, with_direction, trailing=0, unroll=True):
+def _exact(x, y, rows, n_chunks, with_direction, trailing=0):
     """Distance and nearest-boundary vector of the points ``x, y [..., Q]`` to polygon q's edges ``rows [Q, C+1,
     8, M]`` (:class:`psbmpc_jax.geometry.EdgeChunks` rows: null edges past the valid ones): ``d, ex, ey`` as
     :func:`psbmpc_jax.geometry.polygon_distance` (the first nearest edge in slot order), one loop step per
-    chunk of M edges (unrolled inside), ``n_chunks`` steps.  ``trailing``: the axes of ``x`` after Q.
-    ``unroll=False``: one loop step per edge slot instead (the same comparisons in the same order: the same
-    result), a program an eighth the size for the later rounds' few pairs."""
+    chunk of M edges (unrolled inside), ``n_chunks`` steps.  ``trailing``: the axes of ``x`` after Q.  (One loop
+    step per edge instead ran the later rounds 6x slower.)"""
     M = rows.shape[-1]
     lane = lambda a: a.reshape(a.shape + (1,) * trailing)
 
-    def edge(r, carry):
-        d2, vx, vy, inside = carry
-        ex, ey, e2, cross = edge_terms(x, y, tuple(lane(r[:, i]) for i in range(8)))
-        closer = e2 < d2
-        d2 = jnp.where(closer, e2, d2)
-        if with_direction:
-            vx, vy = jnp.where(closer, ex, vx), jnp.where(closer, ey, vy)
-        return d2, vx, vy, inside ^ cross
-
     def body(c, carry):
+        d2, vx, vy, inside = carry
         r = lax.dynamic_index_in_dim(rows, c, axis=1, keepdims=False)          # [Q, 8, M]
         for m in range(M):
-            carry = edge(r[:, :, m], carry)
-        return carry
-
-    def slot(j, carry):
-        r = lax.dynamic_index_in_dim(rows, j // M, axis=1, keepdims=False)     # [Q, 8, M]
-        return edge(lax.dynamic_index_in_dim(r, j % M, axis=2, keepdims=False), carry)
+            ex, ey, e2, cross = edge_terms(x, y, tuple(lane(r[:, i, m]) for i in range(8)))
+            closer = e2 < d2
+            d2 = jnp.where(closer, e2, d2)
+            if with_direction:
+                vx, vy = jnp.where(closer, ex, vx), jnp.where(closer, ey, vy)
+            inside = inside ^ cross
+        return d2, vx, vy, inside
 
     zero = jnp.zeros(x.shape, x.dtype)
     init = (jnp.full(x.shape, jnp.finfo(x.dtype).max, x.dtype), zero, zero, jnp.zeros(x.shape, bool))
-    if unroll:
-        d2, vx, vy, inside = lax.fori_loop(0, n_chunks, body, init)
-    else:
-        d2, vx, vy, inside = lax.fori_loop(0, n_chunks * M, slot, init)
+    d2, vx, vy, inside = lax.fori_loop(0, n_chunks, body, init)
     return jnp.where(inside, 0.0, jnp.sqrt(d2)), jnp.where(inside, 0.0, -vx), jnp.where(inside, 0.0, -vy)
 
 
@@ -200,9 +189,11 @@ def bounded_candidates(px, py, tw, score, bound, edges, nxt, n, with_direction=T
     tol = 64 * jnp.finfo(px.dtype).eps * (scale + 1.0)
     n_chunks = jnp.max(ch.n)
     empty = jnp.broadcast_to((n == 0)[:, None], (P, B))
-    # one exact-distance program for every round: the direction costs two selects per edge, and a traced switch
-    # between the two forms copied the edge loop into the program twice per round
-    exact = lambda x, y, rows, trailing, unroll=True: _exact(x, y, rows, n_chunks, True, trailing, unroll)
+    # the direction only where the score reads it (its two selects and carried arrays per edge slowed round 1 by
+    # half): a traced switch, so each round's edge loop is in the program twice
+    exact = lambda x, y, rows, trailing: lax.cond(
+        with_direction, lambda: _exact(x, y, rows, n_chunks, True, trailing),
+        lambda: _exact(x, y, rows, n_chunks, False, trailing))
 
     def points(keep, lead):
         """Time steps ``[K * S, ...]`` of the kept tiles ``keep [K, ...]`` and whether they are before T."""
@@ -242,7 +233,7 @@ def bounded_candidates(px, py, tw, score, bound, edges, nxt, n, with_direction=T
             else:
                 keep, rest, ubq = _keep(ub[:, q], more)
                 t, t_ok = points(keep, (Q,))
-            d, ex, ey = exact(px[t, q % B], py[t, q % B], ch.rows[q // B], 0, unroll=False)
+            d, ex, ey = exact(px[t, q % B], py[t, q % B], ch.rows[q // B], 0)
             b2, k2 = _best_step(jnp.where(t_ok, score(d, ex, ey, tw[t]), -jnp.inf), t, T)
             better = (b2 > bq) | ((b2 == bq) & (k2 < kq))
             kq, pq = _proof(jnp.maximum(b2, bq), jnp.where(better, k2, kq), rest, empty[q])
