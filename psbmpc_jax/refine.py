@@ -41,6 +41,7 @@ import numpy as np
 from jax import lax
 
 from . import checks
+from .array_types import HostOrDevice
 from .costs.base import Context, TermValue, check_terms, cost_term
 from .costs.collision import CollisionTerm, collision_probability
 from .costs.colregs import ColregsTerm
@@ -48,6 +49,7 @@ from .costs.colregs_fuzzy import (DEFAULT_E_CL, DEFAULT_EPS, DEFAULT_N_Y, RAD2DE
                                   defuzzify, encounter_inputs_xy, fis_colregs, memberships, rule_strengths)
 from .costs.path import PathTerm
 from .evaluate import DEFAULT_TERMS, context, cost_terms, evaluate
+from .jitting import with_jitted
 from .methods.refine_settings import RefineSpec
 from .nlp import BATCH_MODES, SolverSettings, best_index, safeguard, solve_docp
 from .numerics import safe_sqrt, wrap_angle
@@ -261,7 +263,7 @@ def smooth_terms(terms=DEFAULT_TERMS, colregs: str = "fis", path_eps: float = 1e
     :class:`FastCollisionTerm` (the same cost; evaluated through the quadrature estimator by the refinement);
     other terms (grounding, custom terms) are kept as they are.  ``path_maneuvers``: the
     :class:`SmoothPathTerm`'s ``n_maneuvers`` (None: per-control change weights)."""
-    out = []
+    out: list = []
     for t in check_terms(terms):
         if isinstance(t, CollisionTerm):
             out.append(FastCollisionTerm(capacity=pc_capacity))
@@ -438,18 +440,18 @@ class Refinement(NamedTuple):
 class RefineData(NamedTuple):
     """Traced data of the smooth objective: everything the context holds except the own-ship rollout."""
 
-    state0: jax.Array          # [4]
+    state0: HostOrDevice       # [4]
     path: Path                 # one row
-    U_d: jax.Array
+    U_d: HostOrDevice
     t: jax.Array
     last_offsets: jax.Array
     obstacles: Trajectory
     obs_cov: jax.Array
     cov_stats: tuple
-    scen_valid: jax.Array
-    radius: jax.Array
-    zeta_k: jax.Array
-    scen_weight: jax.Array
+    scen_valid: HostOrDevice
+    radius: HostOrDevice
+    zeta_k: HostOrDevice
+    scen_weight: HostOrDevice
     world: object
     params: Params
     terms: tuple
@@ -610,6 +612,7 @@ def _refine(inputs, best, last_offsets, params, samples, evaluation, solver, pat
 _refine_jit = jax.jit(_refine, static_argnames=("config", "static"))
 
 
+@with_jitted(_refine_jit)
 def refine(inputs: SolveInputs, plan: Plan, state: PlannerState, params: Params, samples, config: PlannerConfig,
            settings: RefineSettings = RefineSettings(), terms=None, *, evaluation=None) -> Refinement:
     """Refine the grid search's plan with the smooth DOCP (module docstring, docs/refine.md).
@@ -669,8 +672,6 @@ def previous_plan(warm_start, n: int, dtype):
     return a.astype(dtype), np.asarray(True)
 
 
-
-refine.jitted = _refine_jit
 
 
 __all__ = ["RefineSettings", "Refinement", "refine", "smooth_terms", "ScenarioFuzzyColregsTerm", "SmoothPathTerm",

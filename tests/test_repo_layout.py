@@ -82,14 +82,13 @@ def test_every_study_has_a_readme():
     assert not missing, f"experiments without a README.md: {missing}"
 
 
-def test_type_checker_exemptions_name_existing_modules():
-    """Every module pyproject.toml exempts from mypy's errors exists (a renamed or removed module leaves the list)."""
+def test_no_module_is_exempt_from_the_type_checker():
+    """mypy checks every module of the package: no override in pyproject.toml silences a module's errors (the
+    exemption list went 72 -> 20 -> 0; a new exemption is a regression to fix, not to list)."""
     import tomllib
 
     root = PACKAGE_DIR.parent
     conf = tomllib.loads((root / "pyproject.toml").read_text())["tool"]["mypy"]
-    listed = [m for o in conf["overrides"] for m in o["module"]]
-    assert len(listed) == len(set(listed))
-    for mod in listed:
-        path = root / pathlib.Path(*mod.split("."))
-        assert path.with_suffix(".py").is_file() or (path / "__init__.py").is_file(), mod
+    assert conf["files"] == ["psbmpc_jax"]
+    silenced = [m for o in conf.get("overrides", []) if o.get("ignore_errors") for m in o["module"]]
+    assert silenced == []
