@@ -29,7 +29,6 @@ Light: no JAX.
 from __future__ import annotations
 
 import math
-import os
 
 from . import update_time
 from .limits import ResourceError, padded_sizes
@@ -49,18 +48,7 @@ GRID_SEARCH_N_PS = {"psbmpc": None, "psbmpc_refine": None, "sbmpc": 1, "psbmpc_2
 def time_limit() -> tuple[float | None, str]:
     """``(seconds, source)``: the time a whole simulation may take; ``(None, ...)`` when
     ``PSBMPC_SIMULATION_TIME_LIMIT`` is ``off``."""
-    env = os.environ.get(ENV)
-    if env is None or not env.strip():
-        return DEFAULT_LIMIT_S, f"the default; {ENV}=<seconds> or {ENV}=off raises it"
-    if env.strip().lower() in ("off", "none", "inf"):
-        return None, f"{ENV}={env}"
-    try:
-        v = float(env)
-    except ValueError:
-        v = float("nan")
-    if not (math.isfinite(v) and v > 0):
-        raise ValueError(f"{ENV} must be a number of seconds > 0 or 'off', got {env!r}")
-    return v, f"{ENV}={env}"
+    return update_time.limit_from_env(ENV, DEFAULT_LIMIT_S)
 
 
 def update_seconds(mpc, method: str, n_obstacles: int, land_vertices: int = 0) -> float:

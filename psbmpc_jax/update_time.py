@@ -83,21 +83,28 @@ GRID_FLOAT64 = dict(base=6.7, land=57.0)
 TWO_LEVEL_UPDATE_S = (8.0e-3, 2.0e-3)
 
 
-def time_limit() -> tuple[float | None, str]:
-    """``(seconds, source)``: the time one update may take; ``(None, ...)`` when ``PSBMPC_UPDATE_TIME_LIMIT`` is
-    ``off`` (nothing is refused)."""
-    env = os.environ.get(ENV)
+def limit_from_env(name: str, default_s: float) -> tuple[float | None, str]:
+    """``(seconds, source)`` of a time limit set by the environment variable ``name`` (seconds > 0, or ``off`` /
+    ``none`` / ``inf``: ``(None, ...)``, nothing refused), ``default_s`` when unset; ``ValueError`` naming the
+    variable for anything else."""
+    env = os.environ.get(name)
     if env is None or not env.strip():
-        return DEFAULT_LIMIT_S, f"the default; {ENV}=<seconds> or {ENV}=off raises it"
+        return default_s, f"the default; {name}=<seconds> or {name}=off raises it"
     if env.strip().lower() in ("off", "none", "inf"):
-        return None, f"{ENV}={env}"
+        return None, f"{name}={env}"
     try:
         v = float(env)
     except ValueError:
         v = float("nan")
     if not (math.isfinite(v) and v > 0):
-        raise ValueError(f"{ENV} must be a number of seconds > 0 or 'off', got {env!r}")
-    return v, f"{ENV}={env}"
+        raise ValueError(f"{name} must be a number of seconds > 0 or 'off', got {env!r}")
+    return v, f"{name}={env}"
+
+
+def time_limit() -> tuple[float | None, str]:
+    """``(seconds, source)``: the time one update may take; ``(None, ...)`` when ``PSBMPC_UPDATE_TIME_LIMIT`` is
+    ``off`` (nothing is refused)."""
+    return limit_from_env(ENV, DEFAULT_LIMIT_S)
 
 
 def fmt_seconds(s: float) -> str:

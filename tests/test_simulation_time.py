@@ -168,6 +168,59 @@ def test_the_command_line_refuses_a_runs_override_before_the_first_run(monkeypat
     with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()), pytest.raises(SystemExit) as ex:
         main(["run", "head_on", "--runs", "100", "--out", str(tmp_path / "out"), "--no-figures"])
     assert ex.value.code == 2 and "Traceback" not in err.getvalue()
-    assert "head_on: simulation.duration_s = 400 / mpc.update_period_s = 5" in err.getvalue()
+    assert "head_on.yaml: simulation.duration_s = 400 / mpc.update_period_s = 5" in err.getvalue()
     assert "--runs = 100" in err.getvalue() and "the limit is 60 s" in err.getvalue()
     assert not (tmp_path / "out").exists()
+
+
+def _limit_between_one_run_and_the_file(monkeypatch):
+    """Set the simulation limit between head_on's estimate for 1 run and for its file's runs."""
+    monkeypatch.setenv(simulation_time.ENV, "off")
+    sc = load_scenario("head_on")
+    one, whole = simulation_time.estimate(sc, 1)[0], simulation_time.estimate(sc)[0]
+    assert sc.runs > 1 and whole > one
+    monkeypatch.setenv(simulation_time.ENV, str((one * whole) ** 0.5))
+    return sc
+
+
+def test_the_time_is_checked_for_the_runs_the_caller_will_make(monkeypatch):
+    """load_scenario(runs=N): a file whose own runs would exceed the limit loads for a small N (a --runs
+    override, a campaign task) and is refused for the file's runs, naming the setting given."""
+    _limit_between_one_run_and_the_file(monkeypatch)
+    with pytest.raises(ValueError, match="monte_carlo.runs = 20"):
+        load_scenario("head_on")
+    assert load_scenario("head_on", runs=1).runs == 20
+    with pytest.raises(ValueError, match="--runs = 20"):
+        load_scenario("head_on", runs=20, runs_setting="--runs")
+    with pytest.raises(ValueError, match="runs must be an integer >= 1"):
+        load_scenario("head_on", runs=0)
+
+
+def test_a_small_runs_override_runs_a_file_with_many_runs(monkeypatch, tmp_path):
+    import psbmpc_jax.sim as sim
+    from psbmpc_jax.apps.cli import main
+
+    class Stop(Exception):
+        pass
+
+    def fake(*a, **k):
+        raise Stop
+    _limit_between_one_run_and_the_file(monkeypatch)
+    monkeypatch.setattr(sim, "simulate", fake)
+    with contextlib.redirect_stderr(io.StringIO()), contextlib.redirect_stdout(io.StringIO()), \
+            warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        with pytest.raises(Stop):                         # loaded and checked for 1 run: it gets to simulate
+            main(["run", "head_on", "--runs", "1", "--out", str(tmp_path / "out"), "--no-figures"])
+
+
+def test_a_campaign_is_checked_for_its_task_size_and_duration(monkeypatch):
+    from psbmpc_jax.campaign import definition as d
+
+    _limit_between_one_run_and_the_file(monkeypatch)
+    base = {"name": "t", "scenarios": ["head_on"], "methods": ["psbmpc"], "seeds": [0], "runs": 20}
+    d.resolve(d.definition_from_dict({**base, "chunk_runs": 1}, source="t.yaml"))       # tasks of one run
+    with pytest.raises(ValueError, match="campaign chunk_runs = 20"):
+        d.resolve(d.definition_from_dict({**base, "chunk_runs": 20}, source="t.yaml"))
+    with pytest.raises(ValueError, match="campaign field 'duration_s' = 40000"):
+        d.resolve(d.definition_from_dict({**base, "chunk_runs": 1, "duration_s": 40000}, source="t.yaml"))

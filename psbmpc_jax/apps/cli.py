@@ -412,7 +412,7 @@ def run_scenarios(args, parser) -> int:
     scenarios = []
     for item in selected:   # every file is checked before the first simulation starts
         try:
-            scenarios.append(load_scenario(item, method=args.method))
+            scenarios.append(load_scenario(item, method=args.method, runs=args.runs, runs_setting="--runs"))
         except FileNotFoundError as exc:
             parser.error(f"{exc}{_missing_file_hint(item, names)}")
         except (ValueError, OSError) as exc:
@@ -456,14 +456,6 @@ def run_scenarios(args, parser) -> int:
             check_devices_split(sc, args.devices, args.batch)
         except ValueError as exc:
             parser.error(f"argument --devices: {exc}")
-    if args.runs is not None:   # a --runs override against the time limit, before the first run
-        from ..simulation_time import check as check_time
-
-        for sc in scenarios:
-            try:
-                check_time(sc, args.runs, runs_setting="--runs")
-            except ValueError as exc:
-                parser.error(f"{sc.name}: {exc}")
     enable_compilation_cache()
     from ..sim import simulate
     from ..sim.output import write_index, write_outputs

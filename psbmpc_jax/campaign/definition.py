@@ -197,7 +197,8 @@ def resolve(defn: CampaignDefinition) -> dict:
         effective: dict[str, str | None] = {}
         for m in defn.methods:
             try:
-                sc = load_scenario(item, method=m)
+                sc = load_scenario(item, method=m, runs=min(defn.chunk_runs, defn.runs),   # per task
+                                   runs_setting="campaign chunk_runs")
             except FileNotFoundError as exc:
                 raise ValueError(f"campaign field 'scenarios': {exc}") from None
             except ValueError as exc:
@@ -207,6 +208,16 @@ def resolve(defn: CampaignDefinition) -> dict:
                 from ..checks import multiple_of
 
                 multiple_of(defn.duration_s, sc.dt, "campaign field 'duration_s'", f"{sc.name}'s step dt")
+                from dataclasses import replace
+
+                from ..simulation_time import check as check_time
+
+                try:                    # the campaign's duration replaces the file's: its tasks' time again
+                    check_time(replace(sc, duration=float(defn.duration_s)), min(defn.chunk_runs, defn.runs),
+                               runs_setting="campaign chunk_runs")
+                except ValueError as exc:
+                    raise ValueError(f"campaign scenario {item!r} with campaign field 'duration_s' = "
+                                     f"{defn.duration_s:g}: {exc}") from None
             names.add(sc.name)
             if sc.mpc.method in effective:
                 raise ValueError(f"campaign field 'methods': {effective[sc.mpc.method]!r} and {m!r} both run "

@@ -58,7 +58,7 @@ def run_task(folder, task: Task, doc: dict) -> dict:
         raise RuntimeError(f"task {task.task_id}: the scenario file {rec['file']} changed since the campaign was "
                            f"defined (SHA-256 {rec['sha256'][:12]} then, {now[:12]} now); its rows would not match "
                            f"the others. Restore the file, or start a new campaign folder")
-    sc = load_scenario(task.scenario, method=task.method)
+    sc = load_scenario(task.scenario, method=task.method, runs=task.runs)
     if d.get("duration_s") is not None:
         sc = dataclasses.replace(sc, duration=float(d["duration_s"]))
     result = simulate(sc, runs=task.runs, seed=task.seed, run_start=task.run_start, batch=d["batch"],

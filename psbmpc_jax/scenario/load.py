@@ -64,7 +64,8 @@ def _monte_carlo(d) -> tuple[int, int]:
 
 # ---------------------------------------------------------------------------------------------- public API
 def scenario_from_dict(data: dict, base_dir=None, source: str | None = None, *, land_checks: str = "warn",
-                       method: str | None = None) -> Scenario:
+                       method: str | None = None, simulated_runs: int | None = None,
+                       runs_setting: str = "runs") -> Scenario:
     """Validate a scenario mapping (the parsed YAML, schema in ``docs/scenarios.md``) and build a
     :class:`Scenario` in SI units, radians and the local NED frame.
 
@@ -79,6 +80,8 @@ def scenario_from_dict(data: dict, base_dir=None, source: str | None = None, *, 
             :class:`~psbmpc_jax.scenario_checks.ScenarioWarning` per problem, ``"off"`` skips the checks.
         method: overrides ``mpc.method`` (one of :data:`METHODS`; ``psbmpc-jax run --method``) before the
             mapping is validated, so the file is checked as if it said so.
+        simulated_runs, runs_setting: the runs the caller will simulate when not the mapping's (the time of the
+            whole simulation is checked for them, and a refusal names them as ``runs_setting``).
 
     Raises:
         ValueError: unknown or missing keys, wrong types, non-finite numbers, values out of range, unit
@@ -209,7 +212,11 @@ def scenario_from_dict(data: dict, base_dir=None, source: str | None = None, *, 
     scenario = Scenario(name=name, description=description, own_ship=own, targets=targets, sensor=sensor, mpc=mpc,
                         polygons=rings, chart_info=info, dt=dt, duration=duration, runs=runs, seed=seed,
                         collision_distance=coll, source=source, evaluation=evaluation)
-    simulation_time.check(scenario)          # the whole simulation: updates x runs x planners
+    # the whole simulation: updates x runs x planners, for the runs the caller will make (the file's by default)
+    if simulated_runs is None:
+        simulation_time.check(scenario)
+    else:
+        simulation_time.check(scenario, integer(simulated_runs, runs_setting, ge=1), runs_setting=runs_setting)
     return scenario
 
 
@@ -316,14 +323,18 @@ def read_utf8(path, what: str) -> str:
             f"is not UTF-8 ({exc.reason}). Save the file as UTF-8 (e.g. iconv -f latin1 -t utf-8)") from None
 
 
-def load_scenario(path_or_name, *, land_checks: str = "error", method: str | None = None) -> Scenario:
+def load_scenario(path_or_name, *, land_checks: str = "error", method: str | None = None,
+                  runs: int | None = None, runs_setting: str = "runs") -> Scenario:
     """Load and validate a scenario: a path to a ``.yaml`` / ``.yml`` file, or the name of a built-in scenario
     (:func:`builtin_scenarios`, e.g. ``"head_on"``, ``"imazu_01"``).
 
     Everything is checked before anything is simulated or compiled, the land geometry included
     (``land_checks="error"``: a ship starting on land, a waypoint or route leg on or through land, two ships
     starting closer than the collision distance raise; see :func:`scenario_from_dict`).  ``method`` overrides
-    the file's ``mpc.method`` (validated as if the file said so).
+    the file's ``mpc.method`` (validated as if the file said so).  ``runs``: the Monte Carlo runs the caller will
+    simulate when not the file's (a ``--runs`` override, a campaign's tasks): the time of the whole simulation is
+    checked for them (:mod:`psbmpc_jax.simulation_time`) instead of for the file's ``monte_carlo.runs``, and a
+    refusal names them as ``runs_setting``.
 
     Raises:
         ValueError: unknown built-in name (the message lists them), invalid YAML or an invalid scenario.
@@ -352,6 +363,7 @@ def load_scenario(path_or_name, *, land_checks: str = "error", method: str | Non
         raise ValueError(f"{where}: a scenario file must hold a mapping at the top level, got "
                          f"{type(data).__name__}")
     try:
-        return scenario_from_dict(data, base_dir=path.parent, source=where, land_checks=land_checks, method=method)
+        return scenario_from_dict(data, base_dir=path.parent, source=where, land_checks=land_checks, method=method,
+                                  simulated_runs=runs, runs_setting=runs_setting)
     except ValueError as exc:
         raise ValueError(f"{where}: {exc}") from None
