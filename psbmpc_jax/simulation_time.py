@@ -11,7 +11,8 @@ estimate and the limit.
 * :func:`time_limit` -- :data:`DEFAULT_LIMIT_S` (24 h), or the environment variable
   ``PSBMPC_SIMULATION_TIME_LIMIT`` (seconds, or ``off``).
 * :func:`estimate` -- ``(seconds, parts)`` of a :class:`~psbmpc_jax.scenario.Scenario` with ``runs`` runs.
-* :func:`check` -- called by :func:`psbmpc_jax.scenario.scenario_from_dict` (the file's runs) and by
+* :func:`check` -- called by :func:`psbmpc_jax.scenario.scenario_from_dict` (the file's runs, or the runs its
+  caller will simulate: ``load_scenario(..., runs=N)``) and by
   :func:`psbmpc_jax.sim.simulate` (a ``runs`` override, e.g. ``psbmpc-jax run --runs``).
 * :func:`describe` -- one line for the command line's log before a run.
 

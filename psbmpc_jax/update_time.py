@@ -154,10 +154,15 @@ def grid_search_parts(n_steps: int, n_behaviours: int, n_obstacle_scenarios: int
             "collision": points * n_obstacle_scenarios * GRID_POINT[estimator] * scale * base}
 
 
+def _config_parts(config, n_behaviours: int, n_obstacle_scenarios: int, land_vertices: int) -> dict:
+    """:func:`grid_search_parts` for a :class:`~psbmpc_jax.params.PlannerConfig`."""
+    return grid_search_parts(config.n_steps, n_behaviours, n_obstacle_scenarios, land_vertices,
+                             config.grounding_mode, config.dtype, config.estimator, config.n_samples)
+
+
 def grid_search_seconds(config, n_behaviours: int, n_obstacle_scenarios: int, land_vertices: int = 0) -> float:
     """:func:`grid_search_parts` summed, for a :class:`~psbmpc_jax.params.PlannerConfig`."""
-    return sum(grid_search_parts(config.n_steps, n_behaviours, n_obstacle_scenarios, land_vertices,
-                                 config.grounding_mode, config.dtype, config.estimator, config.n_samples).values())
+    return sum(_config_parts(config, n_behaviours, n_obstacle_scenarios, land_vertices).values())
 
 
 def two_level_seconds(n_targets: int) -> float:
@@ -225,8 +230,7 @@ def check_grid_search(config, n_behaviours: int, n_obstacle_scenarios: int, land
                       names: dict | None = None, limit=None) -> float:
     """:func:`check` of one grid-search solve (:func:`grid_search_parts`).  ``names`` maps ``"horizon"``,
     ``"behaviours"``, ``"samples"``, ``"land"`` to the caller's names of those settings."""
-    parts = grid_search_parts(config.n_steps, n_behaviours, n_obstacle_scenarios, land_vertices,
-                              config.grounding_mode, config.dtype, config.estimator, config.n_samples)
+    parts = _config_parts(config, n_behaviours, n_obstacle_scenarios, land_vertices)
     n = {"horizon": "PlannerConfig.T / dt", "behaviours": "the behaviours", "samples": "PlannerConfig.n_samples",
          "land": "the chart's vertices (with grounding_mode exact)", **(names or {})}
     if parts["land"] >= max(parts["points"], parts["collision"]) and config.grounding_mode == "exact":

@@ -26,6 +26,7 @@ import os
 import pathlib
 import re
 
+from .. import simulation_time
 from ..checks import integer
 from ..scenario_checks import MAX_RUNS
 
@@ -208,13 +209,9 @@ def resolve(defn: CampaignDefinition) -> dict:
                 from ..checks import multiple_of
 
                 multiple_of(defn.duration_s, sc.dt, "campaign field 'duration_s'", f"{sc.name}'s step dt")
-                from dataclasses import replace
-
-                from ..simulation_time import check as check_time
-
                 try:                    # the campaign's duration replaces the file's: its tasks' time again
-                    check_time(replace(sc, duration=float(defn.duration_s)), min(defn.chunk_runs, defn.runs),
-                               runs_setting="campaign chunk_runs")
+                    simulation_time.check(dataclasses.replace(sc, duration=float(defn.duration_s)),
+                                          min(defn.chunk_runs, defn.runs), runs_setting="campaign chunk_runs")
                 except ValueError as exc:
                     raise ValueError(f"campaign scenario {item!r} with campaign field 'duration_s' = "
                                      f"{defn.duration_s:g}: {exc}") from None

@@ -250,9 +250,7 @@ def with_held_path(terms, spec) -> tuple:
     enabled with ``hold_path``; unchanged otherwise (and for a cost without :class:`PathTerm`)."""
     if not (spec.enabled and spec.hold_path):
         return tuple(terms)
-    held = HeldPathTerm(engage_radii=spec.engage_radii, act_cpa_radii=spec.act_cpa_radii,
-                        act_range_radii=spec.act_range_radii, clear_radii=spec.clear_radii,
-                        chi_apparent=spec.chi_apparent)
+    held = _from_spec(HeldPathTerm, spec)
     return tuple(held if isinstance(t, PathTerm) else t for t in terms)
 
 
@@ -262,16 +260,18 @@ TERM_CLASSES: dict[str, type] = {"stand_on": StandOnTerm, "apparent": ApparentTe
 def option_terms(spec) -> tuple:
     """The terms a :class:`~psbmpc_jax.methods.colregs_option_settings.ColregsOptionSpec` switches on (empty when
     it is not enabled), each with the spec's thresholds and its weight."""
-    shared = dict(engage_radii=spec.engage_radii, act_cpa_radii=spec.act_cpa_radii,
-                  act_range_radii=spec.act_range_radii, clear_radii=spec.clear_radii, chi_apparent=spec.chi_apparent,
-                  du_apparent=spec.du_apparent, K_stand_on=spec.K_stand_on, K_port=spec.K_port,
-                  K_apparent=spec.K_apparent, K_hold=spec.K_hold, K_early=spec.K_early)
-    out = []
-    for key in spec.active():
-        cls = TERM_CLASSES[key]
-        names = {f.name for f in dataclasses.fields(cls)}  # type: ignore[arg-type]  # every class is a dataclass
-        out.append(cls(**{k: v for k, v in shared.items() if k in names}))
-    return tuple(out)
+    return tuple(_from_spec(TERM_CLASSES[key], spec) for key in spec.active())
+
+
+#: The spec's settings an option term may take (its thresholds and weights).
+_SPEC_FIELDS = ("engage_radii", "act_cpa_radii", "act_range_radii", "clear_radii", "chi_apparent", "du_apparent",
+                "K_stand_on", "K_port", "K_apparent", "K_hold", "K_early")
+
+
+def _from_spec(cls, spec):
+    """The option term ``cls`` with the spec's values of those of its fields in :data:`_SPEC_FIELDS`."""
+    names = {f.name for f in dataclasses.fields(cls)}
+    return cls(**{k: getattr(spec, k) for k in _SPEC_FIELDS if k in names})
 
 
 __all__ = ["encounter", "bump", "step_down", "stand_on_cost", "apparent_cost", "hold_cost", "early_cost",

@@ -11,6 +11,7 @@ import pathlib
 
 import numpy as np
 
+from ..numerics import wrap_angle_host
 from ..safe_io import atomic_open
 from .results import Encounter, Evaluation
 
@@ -94,7 +95,7 @@ def plot_explanation(ev: Evaluation, e: Encounter, x: dict, path, dpi: int = 110
     axr.set_ylabel("range [m]")
     axc = axr.twinx()
     chi0 = tr.course[i, e.k_start]
-    dev = np.degrees(np.angle(np.exp(1j * (tr.course[i, sl] - chi0))))
+    dev = np.degrees(wrap_angle_host(tr.course[i, sl] - chi0, include_pi=True))
     axc.plot(t[sl], dev, color="tab:red", lw=1, label=f"course of {e.vessel} − course at start [°]")
     axc.axhline(0, color="tab:red", lw=0.5, ls=":")
     axc.set_ylabel("course change from the encounter start [°] (+ starboard)", color="tab:red")

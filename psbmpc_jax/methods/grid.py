@@ -19,7 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..evaluate import DEFAULT_TERMS
-from ..numerics import shift_controls
+from ..numerics import shift_controls, wrap_angle_host
 from ..packing import pack, stack, unpack
 from ..sharding import solve_batch
 from ..solve import Plan, PlannerState, solve
@@ -238,7 +238,7 @@ class GridController:
         commands = None
         if np.any(np.isfinite(refs)):                # held jobs: absolute (u U_d, α + χ); the others NaN (LOS + χ)
             u_d = np.array([s.own_ship.U_d for s in situations])
-            commands = np.column_stack([first[:, 0] * u_d, np.angle(np.exp(1j * (refs + first[:, 1])))])
+            commands = np.column_stack([first[:, 0] * u_d, wrap_angle_host(refs + first[:, 1], include_pi=True)])
         out = Decision(jobs=jobs, first=first, costs=np.asarray(costs, float), walls=np.asarray(walls, float),
                        device_calls=self.solver.device_calls(len(jobs), len(refined)), wall=wall, snapshot=snapshot,
                        commands=commands)

@@ -440,11 +440,11 @@ class _ClosedLoop:
                     for name in INFO_NAMES:
                         self.colav_info[name][r, m] = d.info[name][n]
             for n, (r, i) in enumerate(d.jobs):        # a NaN row (or no commands): offsets over LOS guidance
-                row = None if d.commands is None else d.commands[n]
-                held = row is not None and bool(np.all(np.isfinite(row)))
-                self.absolute[r, i] = held
-                if row is not None and held:
-                    self.cmd_U[r, i], self.cmd_chi[r, i] = row
+                if d.commands is None or not np.all(np.isfinite(d.commands[n])):
+                    self.absolute[r, i] = False
+                else:
+                    self.absolute[r, i] = True
+                    self.cmd_U[r, i], self.cmd_chi[r, i] = d.commands[n]
             ships = sorted({i for _, i in d.jobs})
             for i in ships:
                 rows = [n for n, (_, s) in enumerate(d.jobs) if s == i]     # one per run, runs in order
