@@ -10,6 +10,7 @@ leading axis).
 
 from __future__ import annotations
 
+import concurrent.futures
 import logging
 import math
 from typing import NamedTuple
@@ -174,7 +175,16 @@ def pallas_available(platform: str | None = None) -> bool:
     return _AVAILABLE[platform]
 
 
-def _self_check() -> bool:
+def _self_check(interpret: bool = False) -> bool:
+    """The kernel against the scan on a small random problem, run in a thread of its own: the refinement resolves
+    its layouts while tracing, and JAX's trace state is per thread, so there the two ``jit`` calls run eagerly
+    instead of being staged into the caller's trace (where ``bool`` failed on a tracer and sent an H200 to the
+    scan, 2026-11-29).  ``interpret``: Pallas's interpreter (the CPU tests)."""
+    with concurrent.futures.ThreadPoolExecutor(max_workers=1) as pool:
+        return pool.submit(_compare_kernel_and_scan, interpret).result()
+
+
+def _compare_kernel_and_scan(interpret: bool) -> bool:
     rng = np.random.default_rng(0)
     n, rows = 40, 200
     x0 = jnp.asarray(np.c_[rng.normal(0, 5, (rows, 2)), rng.uniform(-math.pi, math.pi, rows),
@@ -186,7 +196,7 @@ def _self_check() -> bool:
     lat = jnp.zeros(rows, jnp.float32)
     args = (x0, path, chi, u, lat, 10.0, 5.0, 1.0, 2.0, 0.5)
     want = jax.jit(lambda *a: los_rollout(*a))(*args)
-    got = jax.jit(lambda *a: los_rollout_kernel(*a, interpret=False))(*args)
+    got = jax.jit(lambda *a: los_rollout_kernel(*a, interpret=interpret))(*args)
     return all(bool(jnp.allclose(g, w_, rtol=1e-4, atol=1e-3)) for g, w_ in zip(got[:6], want))
 
 

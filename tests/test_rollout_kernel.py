@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import functools
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -81,3 +82,19 @@ def test_no_compiled_kernel_on_the_cpu_and_bad_kernel_names():
                     z0=jnp.zeros(3, jnp.int32), kernel="pallas")
     with pytest.raises(ValueError, match="PlannerConfig.rollout_kernel must be one of"):
         PlannerConfig(rollout_kernel="cuda")
+
+
+def test_self_check_runs_eagerly_inside_a_trace():
+    """The refinement resolves the rollout layout while tracing; the kernel's self-check must still give a Python
+    bool there (it raised TracerBoolConversionError on an H200 and sent the GPU to the scan)."""
+    from psbmpc_jax.ownship import _self_check
+
+    seen = []
+
+    @jax.jit
+    def traced(x):
+        seen.append(_self_check(interpret=True))
+        return x + 1.0
+
+    traced(jnp.float32(0.0))
+    assert seen == [True]
