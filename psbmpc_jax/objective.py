@@ -82,6 +82,18 @@ def _valid_controls(controls):
     return jnp.all(jnp.isfinite(controls)) & jnp.all((u >= U_RANGE[0]) & (u <= U_RANGE[1]) & (jnp.abs(chi) <= CHI_MAX))
 
 
+def _differentiable_rollouts(config: PlannerConfig) -> PlannerConfig:
+    """The objective is differentiated through the own-ship rollout, and the Pallas rollout kernel
+    (:mod:`psbmpc_jax.rollout_kernel`) has no derivative rule: ``rollout_kernel="auto"`` (a GPU's default) is
+    taken as ``"scan"`` here, an explicit ``"pallas"`` is refused."""
+    kernel = getattr(config, "rollout_kernel", "scan")
+    if kernel == "pallas":
+        raise ValueError("PlannerConfig.rollout_kernel='pallas' cannot serve the objective: it is differentiated "
+                         "through the own-ship rollout and the Pallas rollout kernel has no derivative rule; use "
+                         "'scan' or 'auto' (the objective takes 'auto' as 'scan')")
+    return config if kernel == "scan" else config.replace(rollout_kernel="scan")
+
+
 def objective(controls: Annotated[HostOrDevice, Shape("K 2")], inputs: SolveInputs, params: Params, samples,
               config: PlannerConfig, terms=DEFAULT_TERMS, *, last_offsets: Annotated[Any, Shape("2")] = None,
               per_step: bool = False,
@@ -96,6 +108,9 @@ def objective(controls: Annotated[HostOrDevice, Shape("K 2")], inputs: SolveInpu
         per_step: the rows of ``controls`` are per time step.
         smooth: evaluate the collision term with the quadrature estimator (the smooth form).
 
+    The rollouts are the ``lax.scan`` ones whatever ``config.rollout_kernel`` says for ``"auto"`` (the Pallas
+    kernel a GPU's grid search uses has no derivative rule); ``"pallas"`` is refused.
+
     The cost is defined for finite controls with u in [0, 1] and |chi| <= pi.  Concrete (not traced) controls
     and ``last_offsets`` outside that raise ``ValueError`` naming the entry; traced ones (inside ``jit``,
     ``grad``, ``vmap``) give NaN costs, as do a non-finite input or a parameter out of range
@@ -108,6 +123,7 @@ def objective(controls: Annotated[HostOrDevice, Shape("K 2")], inputs: SolveInpu
         check_offsets(np.asarray(lo, np.float64).reshape(-1, 2), "last_offsets")
     controls = jnp.asarray(controls).astype(inputs.own.state.dtype)     # the inputs' (config's) dtype
     _check_controls(controls, config, per_step)
+    config = _differentiable_rollouts(config)
     if per_step:
         params = params.replace(t_ts=jnp.asarray(config.dt, controls.dtype))
     if smooth and config.estimator != "quadrature":

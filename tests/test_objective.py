@@ -317,3 +317,22 @@ def test_extra_term_through_the_sharded_solve():
         np.testing.assert_allclose(np.asarray(ev_s.costs[name])[:b], np.asarray(ev.costs[name])[:b], rtol=1e-12)
     assert int(plan_s.best) == int(plan.best) and int(plan_s.status) == 0
     np.testing.assert_array_equal(np.asarray(nxt_s.last_offsets), np.asarray(nxt.last_offsets))
+
+
+def test_objective_differentiates_through_the_scan_rollouts(monkeypatch):
+    """On a GPU ``rollout_kernel="auto"`` is the Pallas kernel, which has no derivative rule: the objective takes
+    'auto' as the scan (here with the GPU's layouts chosen on this CPU, where 'auto' would give the interpreted
+    kernel) and refuses an explicit 'pallas' naming the field."""
+    import importlib
+
+    ev = importlib.import_module("psbmpc_jax.evaluate")       # the module (the package exports a function)
+    seen = []
+    real = ev.ownship_rollouts
+    monkeypatch.setattr(ev, "ownship_rollouts", lambda *a, **k: (seen.append(k.get("kernel")), real(*a, **k))[1])
+    cfg = cfg64(layout_platform="gpu")
+    inputs, state, params, samples = prepared(1, cfg)
+    c = jnp.asarray(np.tile([0.8, 0.1], (SMALL_BEHAVIOURS.shape[1], 1)))
+    g = jax.grad(lambda x: objective(x, inputs, params, samples, cfg)[0])(c)
+    assert seen and set(seen) == {"scan"} and bool(jnp.all(jnp.isfinite(g)))
+    with pytest.raises(ValueError, match="rollout_kernel='pallas' cannot serve the objective"):
+        objective(c, inputs, params, samples, cfg64(rollout_kernel="pallas"))
