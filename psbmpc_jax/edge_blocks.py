@@ -77,19 +77,46 @@ def _layout(tables, n, blocks):
     return rows, poly, start, valid
 
 
+def _lane_reduce(a, b):
+    """Combines two (squared distance, lane, crossing parity) partials: the smaller distance with the lower lane
+    on ties (the first edge of equal distance, as the sequential searches), the parities xor-ed."""
+    (ea, la, pa), (eb, lb, pb) = a, b
+    take_b = (eb < ea) | ((eb == ea) & (lb < la))
+    return jnp.where(take_b, eb, ea), jnp.where(take_b, lb, la), pa ^ pb
+
+
 def _block_pass(px, py, rows, valid, track):
     """Points ``px, py [K or 1, *S]`` against every block: per block the smallest squared distance ``[K, *S]``,
-    the lane of its (first) edge (when ``track``) and the crossing parity (int32 0/1)."""
+    the lane of its (first) edge (when ``track``) and the crossing parity (int32 0/1).
+
+    The 32 lanes are the minor-most axis and the three results come from one variadic reduction over it: on a GPU
+    that is one row-reduction kernel that evaluates each edge once.  (With the lanes second and three separate
+    reductions, XLA on an H200 evaluated the edges twice: a column reduction for the distance, 4.8 ms at fig5's
+    1 014 behaviours, and the parity as a loop inside the segment scatter, 9.0 ms; profile in
+    ``benchmarks/results/h200_20261129_floor/``.)"""
     K = rows.shape[0]
-    lead = (K, BLOCK_EDGES) + (1,) * (px.ndim - 1)
+    lead = (K,) + (1,) * (px.ndim - 1) + (BLOCK_EDGES,)
     e = tuple(rows[:, :, c].reshape(lead) for c in range(8))
-    _, _, e2, cross = edge_terms(px[:, None], py[:, None], e)
+    _, _, e2, cross = edge_terms(px[..., None], py[..., None], e)
     v = valid.reshape(lead)
     e2 = jnp.where(v, e2, jnp.finfo(px.dtype).max)
-    bmin = jnp.min(e2, axis=1)
-    lane = jnp.argmin(e2, axis=1).astype(jnp.int32) if track else None
-    par = jnp.sum((cross & v).astype(jnp.int32), axis=1) & 1
-    return bmin, lane, par
+    lane = lax.broadcasted_iota(jnp.int32, e2.shape, e2.ndim - 1)
+    par = (cross & v).astype(jnp.int32)
+    init = (jnp.asarray(jnp.inf, e2.dtype), jnp.int32(BLOCK_EDGES), jnp.int32(0))
+    bmin, lane, par = lax.reduce((e2, lane, par), init, _lane_reduce, (e2.ndim - 1,))
+    return bmin, (lane if track else None), par
+
+
+def _segment_min_nonnegative(x, segments, num_segments: int):
+    """``jax.ops.segment_min`` of non-negative floats (squared distances) through their bit patterns: for such
+    floats the integer order of the bits is the float order, so the minimum is the same number, but a GPU takes an
+    integer minimum with one atomic instruction where a float one needs a compare-and-swap loop (the float
+    segment minimum was 0.59 ms of fig5's 1 014-behaviour solve on an H200).  Empty segments give +inf, as
+    ``segment_min`` does."""
+    itype = jnp.int32 if x.dtype == jnp.float32 else jnp.int64
+    m = jax.ops.segment_min(lax.bitcast_convert_type(x, itype), segments, num_segments=num_segments,
+                            indices_are_sorted=True)
+    return jnp.where(m == jnp.iinfo(itype).max, jnp.inf, lax.bitcast_convert_type(m, x.dtype)).astype(x.dtype)
 
 
 def nearest_edges(px, py, tables, n, blocks=None, *, track=True):
@@ -105,7 +132,7 @@ def nearest_edges(px, py, tables, n, blocks=None, *, track=True):
         px, py = px[poly], py[poly]
     bmin, lane, par = _block_pass(px, py, rows, valid, track)
     seg = dict(num_segments=P, indices_are_sorted=True)
-    d2 = jax.ops.segment_min(bmin, poly, **seg)
+    d2 = _segment_min_nonnegative(bmin, poly, P)
     inside = (jax.ops.segment_sum(par, poly, **seg) & 1) == 1
     if not track:
         return d2, inside, None

@@ -339,6 +339,50 @@ def test_flat_search_equals_full_kernel_and_culled_search(seed, packed):
     assert np.all(got[-1] == 0)
 
 
+def test_flat_nearest_edge_ties_pick_the_first_edge_across_lanes_and_blocks():
+    """Exact ties: a 10 m square whose sides are cut into 16 collinear edges each (64 edges, two blocks of 32).
+    Its centre is exactly 5 m from eight edges on four sides, in both blocks; the flat pass must return what a
+    float64 brute force over the edges in order returns: the first edge of equal distance (slot 7, the bottom
+    side), the same squared distance and the even-odd inside flag; also for points on a vertex and outside."""
+    side = np.arange(16) * 0.625
+    ring = np.concatenate([np.c_[side, np.zeros(16)], np.c_[np.full(16, 10.0), side],
+                           np.c_[10.0 - side, np.full(16, 10.0)], np.c_[np.zeros(16), 10.0 - side]])
+    verts, nxt, n = pack_chart([ring])
+    tables = edge_table(verts, nxt)
+    pts = np.array([[5.0, 5.0], [5.0, -3.0], [12.0, 5.0], [0.625, 0.0], [-1.0, -1.0], [2.5, 7.5]])
+    px, py = jnp.asarray(pts[:, 0])[None], jnp.asarray(pts[:, 1])[None]
+    d2, inside, slot = (np.asarray(a)[0] for a in nearest_edges(px, py, tables, n, jnp.asarray(
+        host_blocks(np.asarray(n), 1, verts.shape[1]))))
+    a, b = ring, np.roll(ring, -1, axis=0)
+    for i, (x, y) in enumerate(pts):
+        ab = b - a
+        t = np.clip(((x - a[:, 0]) * ab[:, 0] + (y - a[:, 1]) * ab[:, 1]) / np.sum(ab * ab, axis=1), 0.0, 1.0)
+        e2 = (x - a[:, 0] - t * ab[:, 0]) ** 2 + (y - a[:, 1] - t * ab[:, 1]) ** 2
+        assert d2[i] == e2.min() and slot[i] == int(np.argmin(e2)), (i, d2[i], slot[i], np.flatnonzero(e2 == e2.min()))
+        crossings = ((a[:, 1] > y) != (b[:, 1] > y)) & (x < a[:, 0] + (y - a[:, 1]) * ab[:, 0] / np.where(
+            ab[:, 1] == 0, 1.0, ab[:, 1]))
+        assert bool(inside[i]) == bool(np.sum(crossings) % 2)
+    assert slot[0] == 7 and bool(inside[0])
+
+
+@pytest.mark.parametrize("dtype", ["float32", "float64"])
+def test_segment_min_through_bit_patterns_equals_segment_min(dtype):
+    """The flat pass's integer segment minimum of squared distances equals ``jax.ops.segment_min`` on zeros,
+    subnormals, the largest float (masked lanes), ordinary values and empty segments (+inf) (x64 is on in the
+    tests: conftest)."""
+    from psbmpc_jax.edge_blocks import _segment_min_nonnegative
+
+    dt = jnp.dtype(dtype)
+    rng = np.random.default_rng(3)
+    special = np.array([0.0, np.finfo(dt).tiny / 4, np.finfo(dt).max, 1.0, 1e-30, 3e30], dt)
+    x = jnp.asarray(np.concatenate([special, rng.uniform(0, 1e4, 40).astype(dt)])[:, None]
+                    * np.ones((1, 3), dt))
+    seg = jnp.asarray(np.sort(rng.choice([0, 2, 3, 5], size=x.shape[0])), jnp.int32)    # 1 and 4 empty
+    got = np.asarray(_segment_min_nonnegative(x, seg, 6))
+    want = np.asarray(jax.ops.segment_min(x, seg, num_segments=6, indices_are_sorted=True))
+    assert got.dtype == want.dtype == dt and np.array_equal(got, want) and np.all(np.isinf(got[[1, 4]]))
+
+
 def test_flat_argmax_in_column_chunks_equals_one_pass(monkeypatch):
     """Above FLAT_STEP_ELEMENTS the columns are split into chunks (a lax.map): the same answer."""
     import psbmpc_jax.edge_blocks as eb
