@@ -10,7 +10,9 @@ e.g. ``git worktree add /tmp/old <commit> && mkdir /tmp/oldpkg && cp -r /tmp/old
 Each version solves its own copy of the situation (built by its own bench-points module) with its own default
 layouts; the chosen behaviours are recorded and compared.
 
-Usage: python benchmarks/bench_ab_points.py --baseline /tmp/oldpkg [--presets fig5,fig7,fig9] [--repeats 10]
+Usage: python benchmarks/bench_ab_points.py --baseline /tmp/oldpkg [--presets fig5,fig7,fig9] [--values 9,1014]
+[--repeats 10]   (``--values``: only the points of those swept values, e.g. on a GPU where each compile takes
+half a minute)
 """
 
 from __future__ import annotations
@@ -38,7 +40,7 @@ def points_module(pkg_name: str):
         return bench, bench._situation
 
 
-def slots_for(pkg_name: str, label: str, presets):
+def slots_for(pkg_name: str, label: str, presets, values=None):
     bench, situation_for = points_module(pkg_name)
     pkg = importlib.import_module(pkg_name)
     solve = importlib.import_module(f"{pkg_name}.solve").solve
@@ -55,8 +57,10 @@ def slots_for(pkg_name: str, label: str, presets):
                                   "swept": "n_cbs", "value": 1014, "best": int(ev.best)},
                         "call": lambda c=compiled, a=prepared: c(*a)})
             continue
-        swept, values, fixed = bench.PRESETS[preset]
-        for p in bench.make_points(swept, values, fixed, preset):
+        swept, preset_values, fixed = bench.PRESETS[preset]
+        for p in bench.make_points(swept, preset_values, fixed, preset):
+            if values is not None and p.value not in values:
+                continue
             sit = situation_for(p)
             beh = bench.behaviours_for(p.n_cbs)
             config = pkg.PlannerConfig(T=p.T)
@@ -75,12 +79,16 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--baseline", required=True, help="directory holding the package psbmpc_old")
     ap.add_argument("--presets", default="fig5,fig7,fig9")
+    ap.add_argument("--values", default=None, help="comma-separated swept values to keep (default: all)")
     ap.add_argument("--repeats", type=int, default=10)
     ap.add_argument("--out", default=os.path.join(os.path.dirname(os.path.abspath(__file__)), "results"))
     args = ap.parse_args(argv)
     sys.path.insert(0, os.path.abspath(args.baseline))
     presets = [s.strip() for s in args.presets.split(",") if s.strip()]
-    new, old = slots_for("psbmpc_jax", "new", presets), slots_for("psbmpc_old", "old", presets)
+    values = None if args.values is None else {float(v) for v in args.values.split(",") if v.strip()}
+    new, old = slots_for("psbmpc_jax", "new", presets, values), slots_for("psbmpc_old", "old", presets, values)
+    if not new:
+        ap.error(f"--values {args.values}: no point of the presets {presets} has those values")
     slots = [s for pair in zip(old, new) for s in pair]
     points = time_interleaved(slots, args.repeats)
     by = {}
@@ -94,7 +102,7 @@ def main(argv=None) -> int:
         print(f"{label:40s} old {v['old']['median_ms']:9.2f} ms  new {v['new']['median_ms']:9.2f} ms  "
               f"x{ratio:.3f}  same choice: {rows[-1]['same_best']}")
     meta = environment_meta("ab_points", baseline=os.path.abspath(args.baseline), presets=presets,
-                            repeats=args.repeats, schedule="interleaved", comparison=rows)
+                            values=args.values, repeats=args.repeats, schedule="interleaved", comparison=rows)
     write_results(args.out, "ab_points", meta, points)
     return 0
 

@@ -11,9 +11,11 @@
 #                                                          # then fig10/fig6s/fig7s with the dense search
 #   OUT=/some/dir bash benchmarks/gpu_session.sh refine    # the PSB-MPC + refinement benchmark (bench_refine.py)
 #                                                          # at the slots $SLOTS, bounded by $REFINE_TIMEOUT s
-#   OUT=/some/dir bash benchmarks/gpu_session.sh floor     # every figure of the latency-floor goals in < 8 min:
-#                                                          # depth, profile, fig5 exact/grid, n_ps 5, 1e5 behaviours,
-#                                                          # same-host CPU crossover, plan overhead, refinement
+#   OUT=/some/dir bash benchmarks/gpu_session.sh floor     # the latency-floor goals in one device call (<= 430 s):
+#                                                          # before/after (.gpu_baseline), profile, fig5 exact/grid,
+#                                                          # n_ps 5, 1e5 behaviours, same-host CPU crossover, plan
+#                                                          # overhead, depth; then `refine` as a second call
+# $OUT comes back as at most 8 files: write into a folder and tar it into $OUT (see docs/performance/gpu.md).
 #   SMALL=1 OUT=/tmp/x bash benchmarks/gpu_session.sh bench   # dry run at toy sizes (any machine; also floor)
 #
 # Wheels of packages missing on the device image (shapely, pyshp) are installed from .whl/ when that folder
@@ -56,33 +58,43 @@ if [ "$what" = bench ]; then
   timeout -s INT -k 10 100 python3 benchmarks/bench_sim_batch.py --runs $RUNS --duration $DUR --out "$OUT" 2>&1 | tail -8
   ls -la "$OUT"
 elif [ "$what" = floor ]; then
-  # the GPU goals of the latency-floor work, each step bounded; the bounds add up to 475 s (< 8 min)
+  # the GPU goals of the latency-floor work in one device call: every step bounded by its own limit and by what
+  # is left of FLOOR_BUDGET (default 430 s), most important first. Bounds from the H200 run of 2026-11-29
+  # (jax 0.11.2): a fig5 solve at 1 014 behaviours compiles in ~33 s on the GPU, at 9 in ~4 s. The refinement
+  # (its programs compile for ~150 s) is a second call while the machine is warm, so that both fit 15 minutes of
+  # device time: SLOTS=nidelva:1:map,nidelva:16:vmap REFINE_TIMEOUT=300 bash benchmarks/gpu_session.sh refine
+  # Before/after on the same card: put the baseline package in .gpu_baseline/psbmpc_old and carry it (run(carry=[".whl", ".gpu_baseline"])):
+  #   git archive <rev> psbmpc_jax | tar -x -C .gpu_baseline && mv .gpu_baseline/psbmpc_jax .gpu_baseline/psbmpc_old
   if [ -n "${SMALL:-}" ]; then
-    DEV=cpu; R=2; T="--T 10"; F5="9,39"; BIG=117; N1=39; RSLOTS="paper000:1:map"; PROF="--n-cbs 39"
+    DEV=cpu; R=2; T="--T 10"; F5="9,39"; BIG=117; N1=39; PROF="--n-cbs 39"
   else
-    DEV=gpu; R=10; T=""; F5="9,1014,2028"; BIG=99996; N1=1014; RSLOTS="nidelva:1:map,nidelva:16:vmap"
-    PROF="--n-cbs 1014"
+    DEV=gpu; R=10; T=""; F5="9,1014"; BIG=99996; N1=1014; PROF="--n-cbs 1014"
   fi
-  b() { local lim=$1 name=$2; shift 2
-    timeout -s INT -k 10 "$lim" bash -c "$(declare -f pj); pj bench $* --reference-budget 0 --warmup 1 --quiet \
-      --out $OUT/$name.jsonl" 2>&1 | tail -2; }
-  # 1. sequential depth of fig5 (GPU layouts: no loop step expected with the Pallas rollouts) and a kernel
-  #    profile of one 1014-behaviour solve (also logs whether the Pallas rollout kernel passed its check)
-  b 30 depth_fig5 --preset fig5 --depth --layout-platform gpu $T
-  timeout -s INT -k 10 40 python3 benchmarks/profile_solve.py $PROF --out "$OUT" 2>&1 | tail -3
-  # 2. fig5 exact (n_ps 1) on the GPU and on this host's CPU cores (the crossover), grid grounding at 9 / 1014
-  b 50 bench_gpu_fig5 --sweep n_cbs --values $F5 --n-ps 1 --devices $DEV --repeats $R $T
+  end=$(( $(date +%s) + ${FLOOR_BUDGET:-430} ))
+  lim() { local left=$(( end - $(date +%s) )); [ "$left" -gt "$1" ] && echo "$1" || echo "$left"; }
+  run() { local l; l=$(lim "$1"); shift
+    if [ "$l" -lt 15 ]; then echo "skipped (budget spent): $*"; return; fi
+    timeout -s INT -k 5 "$l" "$@" 2>&1 | tail -4; }
+  b() { local l=$1 name=$2; shift 2
+    run "$l" bash -c "$(declare -f pj); pj bench $* --reference-budget 0 --warmup 1 --quiet --out $OUT/$name.jsonl"; }
+  # 1. before/after at fig5's 9 and 1 014 behaviours, one interleaved run (when a baseline travelled)
+  if [ -d .gpu_baseline/psbmpc_old ]; then
+    run 130 python3 benchmarks/bench_ab_points.py --baseline .gpu_baseline --presets fig5 --values "$F5" \
+      --repeats "$R" --out "$OUT"
+  fi
+  # 2. a kernel profile of one 1 014-behaviour solve (kernel groups, times; logs whether the Pallas rollout
+  #    kernel passed its check)
+  run 75 python3 benchmarks/profile_solve.py $PROF --out "$OUT"
+  # 3. fig5 exact (n_ps 1), n_ps 5 with 2 obstacles, grid grounding at 9 / 1 014, then 10^5 behaviours (memory)
+  b 70 bench_gpu_fig5 --sweep n_cbs --values $F5 --n-ps 1 --devices $DEV --repeats $R $T
+  b 55 bench_gpu_nps5 --sweep n_cbs --values $N1 --n-ps 5 --devices $DEV --repeats $R $T
+  b 60 bench_gpu_fig5_grid --sweep n_cbs --values 9,$N1 --n-ps 1 --grounding grid --devices $DEV --repeats $R $T
+  b 45 bench_gpu_large --sweep n_cbs --values $BIG --n-ps 5 --devices $DEV --repeats 5 $T
+  # 4. the same host's CPU cores (the crossover), Planner.plan host overhead (plan - search)
   b 45 bench_hostcpu_fig5 --sweep n_cbs --values $F5 --n-ps 1 --devices cpu --repeats $R $T
-  b 30 bench_gpu_fig5_grid --sweep n_cbs --values 9,$N1 --n-ps 1 --grounding grid --devices $DEV --repeats $R $T
-  # 3. n_ps 5, 2 obstacles at 1014 behaviours; then 1e5 behaviours (memory in the record)
-  b 40 bench_gpu_nps5 --sweep n_cbs --values $N1 --n-ps 5 --devices $DEV --repeats $R $T
-  b 60 bench_gpu_large --sweep n_cbs --values $BIG --n-ps 5 --devices $DEV --repeats 5 $T
-  # 4. Planner.plan host overhead (plan - search) and the refinement at Nidelva scale (compiles for minutes on a
-  #    small CPU host: the dry run's refine slot may stop at its bound)
-  timeout -s INT -k 10 40 python3 benchmarks/bench_solve.py --repeats $R --modes exact --no-grad --out "$OUT" \
-    2>&1 | tail -4
-  timeout -s INT -k 10 140 python3 benchmarks/bench_refine.py --repeats $R --warmup 1 --slots "$RSLOTS" \
-    --out "$OUT" 2>&1 | tail -6
+  run 45 python3 benchmarks/bench_solve.py --repeats $R --modes exact --no-grad --out "$OUT"
+  # 5. the sequential depth of fig5 with the GPU's layouts (also countable on any CPU)
+  b 30 depth_fig5 --preset fig5 --depth --layout-platform gpu $T
   ls -la "$OUT"
 elif [ "$what" = paper ]; then
   # the paper sweep alone (with few repeats) and fig5 with grid grounding, then the tests
