@@ -14,7 +14,7 @@ preset, float32, this device.  Slots (``psbmpc_jax.apps.bench_refine.REFINE_CASE
 iterations.  Slots are compiled first, then timed round-robin (one repeat of each per round).  The same
 benchmark is ``psbmpc-jax bench --preset refine`` (JSON Lines records, schema psbmpc-bench-refine/1).
 
-Usage: python benchmarks/bench_refine.py [--repeats 20] [--warmup 2] [--cases nidelva,nidelva_T60,paper000]
+Usage: python benchmarks/bench_refine.py [--repeats 20] [--warmup 2] [--cases nidelva,nidelva_u10,nidelva_T60,paper000]
                                         [--slots nidelva:1:map,nidelva:16:vmap]
 ``--slots`` keeps only the named (case, starts, batch) entries of REFINE_CASES (each compiles for a minute or
 more on a small CPU host: a short lent-GPU session times a few).
@@ -35,16 +35,18 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--repeats", type=int, default=20)
     ap.add_argument("--warmup", type=int, default=2)
-    ap.add_argument("--cases", default="nidelva,nidelva_T60,paper000",
-                    help="comma-separated case names of psbmpc_jax.apps.bench_refine.REFINE_CASES")
+    ap.add_argument("--cases", default=None,
+                    help="comma-separated case names of psbmpc_jax.apps.bench_refine.REFINE_CASES (default: "
+                         "nidelva,nidelva_T60,paper000; every case when --slots is given)")
     ap.add_argument("--slots", default=None,
                     help="comma-separated case:starts:batch entries of REFINE_CASES to keep (default: all of --cases)")
     ap.add_argument("--out", default=os.path.join(os.path.dirname(os.path.abspath(__file__)), "results"))
     args = ap.parse_args(argv)
     from psbmpc_jax.apps.bench_refine import REFINE_CASES, refine_benchmark
 
-    names = [c for c in args.cases.split(",") if c]
     known = sorted({c[0] for c in REFINE_CASES})
+    cases_arg = args.cases or (",".join(known) if args.slots is not None else "nidelva,nidelva_T60,paper000")
+    names = [c for c in cases_arg.split(",") if c]
     if args.repeats < 2 or args.warmup < 0 or not names or any(n not in known for n in names):
         ap.error(f"--repeats >= 2, --warmup >= 0 and --cases from {','.join(known)}")
     cases = tuple(c for c in REFINE_CASES if c[0] in names)

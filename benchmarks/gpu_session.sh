@@ -62,7 +62,7 @@ elif [ "$what" = floor ]; then
   # is left of FLOOR_BUDGET (default 430 s), most important first. Bounds from the H200 run of 2026-11-29
   # (jax 0.11.2): a fig5 solve at 1 014 behaviours compiles in ~33 s on the GPU, at 9 in ~4 s. The refinement
   # (its programs compile for ~150 s) is a second call while the machine is warm, so that both fit 15 minutes of
-  # device time: SLOTS=nidelva:1:map,nidelva:16:vmap REFINE_TIMEOUT=300 bash benchmarks/gpu_session.sh refine
+  # device time: SLOTS=nidelva:1:map,nidelva_u10:1:map REFINE_TIMEOUT=300 bash benchmarks/gpu_session.sh refine
   # Before/after on the same card: put the baseline package in .gpu_baseline/psbmpc_old and carry it (run(carry=[".whl", ".gpu_baseline"])):
   #   git archive <rev> psbmpc_jax | tar -x -C .gpu_baseline && mv .gpu_baseline/psbmpc_jax .gpu_baseline/psbmpc_old
   if [ -n "${SMALL:-}" ]; then

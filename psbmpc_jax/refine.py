@@ -50,6 +50,7 @@ from .costs.colregs_fuzzy import (DEFAULT_E_CL, DEFAULT_EPS, DEFAULT_N_Y, RAD2DE
 from .costs.path import PathTerm
 from .evaluate import DEFAULT_TERMS, context, cost_terms, evaluate
 from .jitting import with_jitted
+from .layouts import resolve_unroll
 from .methods.refine_settings import RefineSpec
 from .nlp import BATCH_MODES, SolverSettings, best_index, safeguard, solve_docp
 from .numerics import safe_sqrt, wrap_angle
@@ -473,10 +474,15 @@ def refine_data(inputs: SolveInputs, last_offsets, params: Params, config: Plann
 
 
 def rollout(controls, d: RefineData, config: PlannerConfig) -> Trajectory:
-    """Own-ship trajectory ``[N+1]`` under per-step controls ``[N, 2]`` (time-major, one row)."""
+    """Own-ship trajectory ``[N+1]`` under per-step controls ``[N, 2]`` (time-major, one row), a ``lax.scan`` of
+    ``config.rollout_unroll`` steps per loop step (``"auto"``: 1 on a CPU, :data:`psbmpc_jax.layouts.GPU_UNROLL`
+    on a GPU), as the grid search's rollouts: on a GPU each loop step of the rollout and of its reverse pass is a
+    kernel launch, and the refinement is a chain of such rollouts."""
     p = d.params
+    unroll = resolve_unroll(getattr(config, "rollout_unroll", 1), getattr(config, "layout_platform", "auto"))
     return los_rollout(d.state0[None], d.path, controls[:, 1:2], d.U_d * controls[:, 0:1],
-                       jnp.zeros((1,), controls.dtype), p.os_lookahead, p.os_R_a, p.os_T_chi, p.os_T_U, config.dt)
+                       jnp.zeros((1,), controls.dtype), p.os_lookahead, p.os_R_a, p.os_T_chi, p.os_T_U, config.dt,
+                       unroll=unroll)
 
 
 def term_costs(controls, d: RefineData, config: PlannerConfig, samples=None) -> dict:

@@ -413,7 +413,11 @@ def test_bench_refine_preset_is_accepted_and_checked():
     for extra in (["--n-ps", "3"], ["--T", "60"], ["--n-do", "1"], ["--dt", "1.0"]):
         with pytest.raises(ValueError, match=extra[0]):
             build_plan(ap.parse_args(["--preset", "refine", *extra]))
-    assert {c[0] for c in REFINE_CASES} == {"nidelva", "nidelva_T60", "paper000"}
+    assert {c[0] for c in REFINE_CASES} == {"nidelva", "nidelva_u10", "nidelva_T60", "paper000"}
+    from psbmpc_jax.presets import build_mpc
+
+    for case, overrides, *_ in REFINE_CASES:                  # every case's overrides are valid config fields
+        assert build_mpc("nidelva", overrides)[0].replace(**overrides) is not None, case
     assert any(c[3] == 1 for c in REFINE_CASES) and any(c[3] == 16 and c[4] == "vmap" for c in REFINE_CASES)
 
 
@@ -465,3 +469,25 @@ def test_bad_previous_plan_rejected(warm_start, settings, match):
         RefineSettings(n_starts=1, previous_start=True)
     with pytest.raises(ValueError, match="RefineSettings.previous_start"):
         RefineSettings(previous_start=1)
+
+
+def test_refine_rollout_follows_the_configs_unroll():
+    """The refinement's own-ship rollout (what its smooth objective differentiates) takes
+    ``PlannerConfig.rollout_unroll`` (a GPU runs each loop step as a kernel launch): with 10 steps per loop step
+    the trajectory and the gradient of a function of it equal those with 1 (float64), and the sequential depth
+    drops by about 10x."""
+    from psbmpc_jax.depth import sequential_depth_only
+    from psbmpc_jax.refine import rollout
+
+    inputs, state, params, samples, plan, ev = prepared(random_situation(0, T=T))
+    data = refine_data(inputs, jnp.asarray(state.last_offsets), params, CFG, smooth_terms())
+    c = jnp.asarray(np.stack([np.linspace(0.5, 0.9, N), np.linspace(-0.5, 0.5, N)], axis=1))
+    out = {}
+    for u in (1, 10):
+        cfg = CFG.replace(rollout_unroll=u)
+        g = lambda c, cfg=cfg: jnp.sum(jnp.sin(rollout(c, data, cfg).x) + rollout(c, data, cfg).chi)  # noqa: E731
+        out[u] = jax.jit(jax.value_and_grad(g))(c)
+        out[f"depth{u}"] = sequential_depth_only(lambda c, cfg=cfg: rollout(c, data, cfg).x, c).depth
+    np.testing.assert_allclose(float(out[10][0]), float(out[1][0]), rtol=1e-12)
+    np.testing.assert_allclose(np.asarray(out[10][1]), np.asarray(out[1][1]), rtol=1e-10, atol=1e-12)
+    assert out["depth1"] >= N and out["depth10"] <= out["depth1"] // 10 + 2, out

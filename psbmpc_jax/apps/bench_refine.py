@@ -17,13 +17,16 @@ from .bench_timing import default_out, select_devices, stats_ms
 REFINE_SCHEMA = "psbmpc-bench-refine/1"
 #: The refinement benchmark's cases: (case, PlannerConfig overrides of the Nidelva preset, refine horizon [s]
 #: (None: the config's T), starts, batch).  "nidelva": the preset's T = 150 s with a 60 s refine horizon;
-#: "nidelva_T60": the whole MPC horizon 60 s; "paper000": the Smooth-SBMPC paper's T_init 60 s / T_mpc 20 s at
+#: "nidelva_u10": the same with the rollouts 10 steps per loop step (``rollout_unroll``: fewer kernel launches on a
+#: GPU); "nidelva_T60": the whole MPC horizon 60 s; "paper000": the Smooth-SBMPC paper's T_init 60 s / T_mpc 20 s at
 #: dt 1 s (docs/smooth_sbmpc.md).  Always 2 obstacles x 5 scenarios and the 13 Table 2 polygons (grid mode).
 REFINE_CASES: tuple[tuple[str, dict[str, float], float | None, int, str], ...] = (
     ("nidelva", {}, 60.0, 1, "map"),
     ("nidelva", {}, 60.0, 4, "map"),
     ("nidelva", {}, 60.0, 16, "map"),
     ("nidelva", {}, 60.0, 16, "vmap"),
+    ("nidelva_u10", {"rollout_unroll": 10}, 60.0, 1, "map"),
+    ("nidelva_u10", {"rollout_unroll": 10}, 60.0, 16, "vmap"),
     ("nidelva_T60", {"T": 60.0}, None, 1, "map"),
     ("nidelva_T60", {"T": 60.0}, None, 16, "vmap"),
     ("paper000", {"T": 60.0, "dt": 1.0}, 20.0, 1, "map"),
