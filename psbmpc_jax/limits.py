@@ -248,8 +248,8 @@ def check_evaluation_time(runs, pairs: str = "own", *, what: str, sample_interva
     raise ResourceError(
         f"{what}: {len(runs)} run(s), {samples:.3g} samples in all ({sample_interval}) x up to {n_v} vessels, "
         f"{scored_pairs(n_v, pairs)} scored pair(s) per run ({pairs_setting} = {pairs}): scoring takes about "
-        f"{fmt_seconds(total)} (samples x ({a:g} µs per vessel + {b:g} µs per pair + {c:g} µs), measured on a 2-core "
-        f"CPU); the limit is {fmt_seconds(cap)} ({source}). "
+        f"{fmt_seconds(total)} (samples x ({a:g} µs per vessel + {b:g} µs per pair + {c:g} µs), measured on a "
+        f"2-core CPU); the limit is {fmt_seconds(cap)} ({source}). "
         + (f"{hint}; to" if hint else "Fewer or shorter tracks, a larger sample interval, or fewer pairs; to")
         + f" score them anyway, set {EVALUATION_TIME_ENV} to more seconds (or 'off')")
 
@@ -351,5 +351,6 @@ def check_solve(config, n_behaviours: int, n_obstacle_scenarios: int, land: bool
 
 __all__ = ["ResourceError", "HEADROOM", "memory_limit", "check", "parse_bytes", "fmt_bytes", "evaluation_samples",
            "evaluation_bytes", "check_evaluation",
-           "scored_pairs", "evaluation_seconds", "evaluation_time_limit", "check_evaluation_time", "describe_evaluation",
-           "EVAL_TIME_S", "EVALUATION_TIME_LIMIT_S", "EVALUATION_TIME_ENV", "solve_bytes", "solve_parts", "check_solve", "padded_sizes", "RUNTIME_OVERHEAD"]
+           "scored_pairs", "evaluation_seconds", "evaluation_time_limit", "check_evaluation_time",
+           "describe_evaluation", "EVAL_TIME_S", "EVALUATION_TIME_LIMIT_S", "EVALUATION_TIME_ENV", "solve_bytes",
+           "solve_parts", "check_solve", "padded_sizes", "RUNTIME_OVERHEAD"]

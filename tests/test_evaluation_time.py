@@ -150,7 +150,8 @@ def test_command_line_refuses_hours_naming_file_samples_vessels_pairs(tmp_path):
     assert log.startswith(f"psbmpc-jax evaluate: scoring {path}: about 3.46 h (1 run(s), 1e+09 samples x up to 10 "
                           f"vessels, 90 scored pair(s) per run")
     assert refusal.startswith(f"psbmpc-jax evaluate: evaluation of {path}: 1 run(s), 1e+09 samples in all "
-                              f"(sample_interval_s = 1 s) x up to 10 vessels, 90 scored pair(s) per run (--pairs = all)")
+                              f"(sample_interval_s = 1 s) x up to 10 vessels, 90 scored pair(s) per run "
+                              f"(--pairs = all)")
     assert "the limit is 60 min" in refusal and "--pairs own" in refusal and "--set sample_interval_s" in refusal
     # the same files, several at once: the refusal names them all and counts their runs together
     second = hours_csv(tmp_path / "more.csv", vessels=2)

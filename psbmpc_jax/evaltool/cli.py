@@ -274,8 +274,9 @@ def _file_failed(path, exc) -> int:
 
 def _check_time(loaded, pairs: str, quiet: bool = False) -> float:
     """Log the estimated time of scoring every run of every file read (``loaded``: ``(path, stored, params,
-    runs)``) on stderr (not when ``quiet``: ``psbmpc-jax -q``), and refuse it above the limit (:func:`psbmpc_jax.limits.check_evaluation_time`,
-    ResourceError naming the files, samples, vessels, pairs, estimate and limit)."""
+    runs)``) on stderr (not when ``quiet``: ``psbmpc-jax -q``), and refuse it above the limit
+    (:func:`psbmpc_jax.limits.check_evaluation_time`: ResourceError naming the files, samples, vessels, pairs,
+    estimate and limit)."""
     shapes, paths = [], [str(path) for path, *_ in loaded]
     for _, _, params, runs in loaded:
         shapes += run_shapes(runs, params.sample_interval_s)

@@ -156,8 +156,9 @@ def scenario_from_dict(data: dict, base_dir=None, source: str | None = None, *, 
                                setting="evaluation.sample_interval_s",
                                hint="Use a larger evaluation.sample_interval_s (default 1 s)")
 
-    ctx = dict(chart=chart, duration=file_duration, route_duration=max(duration, file_duration), params=mpc.params, origin_latlon=origin_ll, method=mpc.method,
-               colregs_option=mpc.colregs_option)
+    # the ships: speed plans against the file's duration, default routes long enough for the longer of the two
+    ctx = dict(chart=chart, duration=file_duration, route_duration=max(duration, file_duration), params=mpc.params,
+               origin_latlon=origin_ll, method=mpc.method, colregs_option=mpc.colregs_option)
     own = read_ship(data["own_ship"], "own_ship", own=True, ctx=ctx)
     targets = tuple(read_ship(t, f"targets[{i}]", own=False, ctx=ctx) for i, t in enumerate(tl))
     seen = {own.name: "own_ship"}
