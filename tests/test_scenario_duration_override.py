@@ -147,3 +147,14 @@ def test_campaign_task_loads_with_the_campaigns_duration(tmp_path, monkeypatch):
     assert sc.duration == 60.0 and kw["runs"] == 50
     assert sc.overrides == {"simulation.duration_s": {"file": 86400.0, "used": 60.0,
                                                       "by": "campaign field 'duration_s'"}}
+
+
+def test_campaign_command_line_names_the_duration_flag(tmp_path, capsys):
+    from psbmpc_jax.apps.cli import main
+
+    path = scenario_file(tmp_path, 60.0)
+    rc = main(["campaign", "--out", str(tmp_path / "o"), "--scenarios", path, "--seeds", "0", "--runs", "100",
+               "--chunk-runs", "50", "--duration", "86400"])
+    err = capsys.readouterr().err
+    assert rc == 2 and "campaign field 'duration_s' (--duration) = 86400 / mpc.update_period_s" in err, err
+    assert not (tmp_path / "o").exists()
