@@ -1,8 +1,9 @@
 """The time of scoring tracks (``evaluate_tracks``) by samples, vessels and scored pairs (docs/limits.md, "Time
-of an evaluation"; the coefficients of ``psbmpc_jax.limits.EVAL_TIME``).
+of an evaluation"; the coefficients of ``psbmpc_jax.limits.EVAL_TIME_S``).
 
 Each case builds synthetic tracks of ``vessels`` vessels x ``samples`` samples 1 s apart (the own-ship heading
-north at 0.5 m/s; the others head-on at 0.5 m/s, 100 km apart and 30 m to the side: one encounter per pair, or
+north at 0.5 m/s; the k-th other vessel head-on at 0.5 m/s, 100·k km ahead and 30·k m to the side, so only
+the nearest ones meet it within the tracks: 1 to 4 encounters), or
 ``circling``: one vessel circling the own-ship at 10 m/s on a 3 km circle whose centre is 2.9 km away, so it
 enters and leaves the 2.5 km stage-2 range about once every 31 min: an encounter-rich track), then times
 ``evaluate_tracks(tracks, pairs=...)`` alone (the tracks' construction and validation are not timed): the median
