@@ -14,6 +14,9 @@ the estimate and the limit.
 * :func:`solve_bytes` — the peak memory of one grid-search solve (:func:`psbmpc_jax.solve.solve`) from its
   configuration and padded sizes.
 * :func:`check` — refuse an estimate above the limit.
+* :func:`evaluation_seconds` / :func:`check_evaluation_time` — the *time* of an evaluation (samples x vessels x
+  scored pairs, every run of every track file), refused above :func:`evaluation_time_limit` (1 h, or
+  ``PSBMPC_EVALUATION_TIME_LIMIT``).
 
 The estimates are linear models of the dominant arrays whose coefficients were measured (peak traced NumPy
 memory for the evaluation, XLA's compiled memory analysis and the process's peak RSS for the solve; the
@@ -163,7 +166,7 @@ def evaluation_samples(span_s: float, dt: float) -> int:
 
 def evaluation_bytes(n_samples: int, n_vessels: int, pairs: str = "own") -> float:
     """Estimated peak memory [bytes] of scoring one run of ``n_vessels`` tracks resampled to ``n_samples``."""
-    n_pairs = n_vessels * (n_vessels - 1) if pairs == "all" else max(n_vessels - 1, 0)
+    n_pairs = scored_pairs(n_vessels, pairs)
     a, b, c = EVAL_WORDS
     return EVAL_MARGIN * 8.0 * float(n_samples) * (a * n_vessels + b * n_pairs + c)
 
@@ -180,6 +183,86 @@ def check_evaluation(span_s: float, dt: float, n_vessels: int, pairs: str = "own
     check(setting, est, f"scoring tracks of {span_s:.6g} s sampled every {dt:.6g} s ({n:.3g} samples) x "
                         f"{n_vessels} vessels", hint=hint, platform="cpu", limit=limit)
     return n
+
+
+# ------------------------------------------------------------------------------------------ evaluation time
+#: Seconds of :func:`psbmpc_jax.evaltool.evaluate_tracks` per resampled sample: EVAL_TIME_S[0] per vessel
+#: (resampling, manoeuvre detection) + EVAL_TIME_S[1] per scored pair (geometry, encounter windows, scores) +
+#: EVAL_TIME_S[2].  Least-squares fit (rounded) to the medians of benchmarks/bench_evaluation_time.py on the 2-core
+#: CPU machine (benchmarks/results/evaluation_time_cpu_20261129T194858Z.json: 2 x 10^5 samples with 2 / 3 / 5 / 8
+#: vessels, own-ship and all-pairs scoring, 10^6 samples of one pair; load average 1.3-3.4): every recorded
+#: evaluation within 0.9-1.35 times the model, the encounter-rich one (106 encounters) and 10^7 samples of one
+#: pair (14.1 s) included.  The tested-limits record of 10^7 samples of one pair
+#: (benchmarks/results/tested_limits_cpu_20261129T132410Z.json, case track_1e7: 79 s) timed a whole fresh process
+#: (starting Python, building and validating the tracks) at a load average of 10-11 on the two cores: 6.2 times
+#: this model's 12.9 s; the estimate is that of a lightly loaded machine.
+EVAL_TIME_S = (0.45e-6, 0.085e-6, 0.3e-6)
+#: Seconds one evaluation (every run of every track file one call scores) may take unless
+#: ``PSBMPC_EVALUATION_TIME_LIMIT`` says otherwise.
+EVALUATION_TIME_LIMIT_S = 3600.0
+EVALUATION_TIME_ENV = "PSBMPC_EVALUATION_TIME_LIMIT"
+
+
+def scored_pairs(n_vessels: int, pairs: str = "own") -> int:
+    """The pairs an evaluation scores: ``own``: the own-ship against every other vessel (V - 1); ``all``: every
+    ordered pair (V x (V - 1))."""
+    return n_vessels * (n_vessels - 1) if pairs == "all" else max(n_vessels - 1, 0)
+
+
+def evaluation_seconds(n_samples: float, n_vessels: int, pairs: str = "own") -> float:
+    """Estimated seconds of scoring one run of ``n_vessels`` tracks resampled to ``n_samples`` (:data:`EVAL_TIME_S`)."""
+    a, b, c = EVAL_TIME_S
+    return float(n_samples) * (a * n_vessels + b * scored_pairs(n_vessels, pairs) + c)
+
+
+def evaluation_time_limit() -> tuple[float | None, str]:
+    """``(seconds, source)``: the time one evaluation may take; ``(None, ...)`` when
+    ``PSBMPC_EVALUATION_TIME_LIMIT`` is ``off``."""
+    from .update_time import limit_from_env
+
+    return limit_from_env(EVALUATION_TIME_ENV, EVALUATION_TIME_LIMIT_S)
+
+
+def _evaluation_total(runs, pairs: str) -> tuple[float, float, int]:
+    """``(seconds, samples, most vessels)`` of the runs ``[(n_samples, n_vessels), ...]``."""
+    runs = [(float(n), int(v)) for n, v in runs]
+    return (sum(evaluation_seconds(n, v, pairs) for n, v in runs), sum(n for n, _ in runs),
+            max((v for _, v in runs), default=0))
+
+
+def check_evaluation_time(runs, pairs: str = "own", *, what: str, sample_interval: str, pairs_setting: str = "pairs",
+                          hint: str = "", limit: tuple[float | None, str] | None = None) -> float:
+    """Refuse an evaluation whose estimated time exceeds :func:`evaluation_time_limit`; returns the estimate [s].
+
+    ``runs``: ``(n_samples, n_vessels)`` of every run the evaluation scores (:func:`evaluation_samples`);
+    ``what``: the tracks in words, their file(s) named (``"tracks.csv"``); ``sample_interval``: the sample
+    interval(s) with the setting that sets them (``"sample_interval_s = 1 s"``); ``pairs_setting``: the caller's
+    name of the pair mode.  The message names them with the samples, vessels, pairs, the estimate and the limit."""
+    from .update_time import fmt_seconds
+
+    total, samples, n_v = _evaluation_total(runs, pairs)
+    cap, source = limit if limit is not None else evaluation_time_limit()
+    if cap is None or total <= cap:
+        return total
+    a, b, c = (x * 1e6 for x in EVAL_TIME_S)
+    raise ResourceError(
+        f"{what}: {len(runs)} run(s), {samples:.3g} samples in all ({sample_interval}) x up to {n_v} vessels, "
+        f"{scored_pairs(n_v, pairs)} scored pair(s) per run ({pairs_setting} = {pairs}): scoring takes about "
+        f"{fmt_seconds(total)} (samples x ({a:g} µs per vessel + {b:g} µs per pair + {c:g} µs), measured on a "
+        f"2-core CPU); the limit is {fmt_seconds(cap)} ({source}). "
+        + (f"{hint}; to" if hint else "Fewer or shorter tracks, a larger sample interval, or fewer pairs; to")
+        + f" score them anyway, set {EVALUATION_TIME_ENV} to more seconds (or 'off')")
+
+
+def describe_evaluation(runs, pairs: str = "own") -> str:
+    """``about 12 s (3 run(s), 1e+07 samples x up to 2 vessels, 1 scored pair(s) per run)``: the estimate of
+    :func:`check_evaluation_time` in words, for a log line."""
+    from .update_time import fmt_seconds
+
+    total, samples, n_v = _evaluation_total(runs, pairs)
+    return (f"about {fmt_seconds(total)} ({len(runs)} run(s), {samples:.3g} samples x up to {n_v} "
+            f"vessels, {scored_pairs(n_v, pairs)} scored pair(s) per run; estimated with times measured on a 2-core "
+            f"CPU)")
 
 
 # ------------------------------------------------------------------------------------------------ the solve
@@ -267,4 +350,7 @@ def check_solve(config, n_behaviours: int, n_obstacle_scenarios: int, land: bool
 
 
 __all__ = ["ResourceError", "HEADROOM", "memory_limit", "check", "parse_bytes", "fmt_bytes", "evaluation_samples",
-           "evaluation_bytes", "check_evaluation", "solve_bytes", "solve_parts", "check_solve", "padded_sizes", "RUNTIME_OVERHEAD"]
+           "evaluation_bytes", "check_evaluation",
+           "scored_pairs", "evaluation_seconds", "evaluation_time_limit", "check_evaluation_time",
+           "describe_evaluation", "EVAL_TIME_S", "EVALUATION_TIME_LIMIT_S", "EVALUATION_TIME_ENV", "solve_bytes",
+           "solve_parts", "check_solve", "padded_sizes", "RUNTIME_OVERHEAD"]

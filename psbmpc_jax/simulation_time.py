@@ -112,7 +112,8 @@ def describe(scenario, runs: int | None = None) -> str:
 def check(scenario, runs: int | None = None, *, runs_setting: str = "monte_carlo.runs",
           limit: tuple[float | None, str] | None = None) -> float:
     """Refuse a simulation whose :func:`estimate` exceeds the limit (:func:`time_limit`), naming the settings
-    that drive it with their values, the estimate and the limit; returns the estimate."""
+    that drive it with their values (the duration by the name of its override when the loader replaced the file's,
+    ``Scenario.overrides``), the estimate and the limit; returns the estimate."""
     total, p = estimate(scenario, runs)
     cap, source = limit if limit is not None else time_limit()
     if cap is None or total <= cap:
@@ -125,7 +126,8 @@ def check(scenario, runs: int | None = None, *, runs_setting: str = "monte_carlo
                      f"mpc.config.T = {mpc.config.T:g} s")
     if methods & {"smooth_sbmpc", "sbmpc_init"}:
         shape.append(f"mpc.smooth.T_init_s = {mpc.smooth.T_init:g} and T_mpc_s = {mpc.smooth.T_mpc:g}")
-    settings = (f"simulation.duration_s = {scenario.duration:g} / mpc.update_period_s = {mpc.period:g} "
+    duration = scenario.overrides.get("simulation.duration_s", {}).get("by", "simulation.duration_s")
+    settings = (f"{duration} = {scenario.duration:g} / mpc.update_period_s = {mpc.period:g} "
                 f"({p['updates']} MPC updates per run; simulation.dt_s = {scenario.dt:g}: {p['steps']} steps), "
                 f"{runs_setting} = {p['runs']}, " + "".join(f"{x}, " for x in shape)
                 + f"{len(p['planners'])} ship(s) planning ({', '.join(sorted(methods))})")

@@ -382,6 +382,38 @@ CASES = [
         return run_file(tmp, d) or accepted("ran")
     ''', match=r"simulation\.duration_s = 86400 / mpc\.update_period_s = 0\.5.*monte_carlo\.runs = 50.*the simulation "
                 r"takes about .* days.*the limit is"),
+    C("evaluate_hours", "runaway", "(beyond the issue's list) an evaluation each of whose tracks fits in memory "
+      "whose scoring takes hours: 10 vessels x 10^9 s of tracks (timestamps in ms), every ordered pair scored", '''
+    def case(tmp):
+        p = tmp / "tracks.csv"
+        p.write_text("t_s,vessel,north_m,east_m\\n" + "".join(
+            f"{t},v{v},{1000 * v + (1000 if t else 0) * (1 if v % 2 else -1)},{100 * v}\\n"
+            for t in (0, 1000000000) for v in range(10)))
+        return cli_outcome(*cli("evaluate", p, "--pairs", "all")) or accepted("scored")
+    ''', match=r"evaluation of .*tracks\.csv: 1 run\(s\), 1e\+09 samples in all \(sample_interval_s = 1 s\) x up to "
+                r"10 vessels, 90 scored pair\(s\) per run \(--pairs = all\): scoring takes about .* h.*the limit is"),
+    C("campaign_duration_at_load", "runaway", "(beyond the issue's list) a campaign's duration_s checked after the "
+      "file's: a 1-day file refused in a 60 s campaign, a 60 s file in a 1-day campaign accepted until it ran", '''
+    def case(tmp):
+        import yaml
+        from psbmpc_jax.campaign import definition as dfn
+        def resolve(duration_file, duration_campaign):
+            d = scenario(simulation={"dt_s": 0.5, "duration_s": duration_file}, monte_carlo={"runs": 1})
+            d["mpc"]["update_period_s"] = 0.5
+            d["own_ship"]["waypoints_m"] = [[0, 0], [100000, 0]]
+            d["targets"][0]["waypoints_m"] = [[200, 10], [-90000, 10]]
+            p = tmp / f"s{duration_file}.yaml"
+            p.write_text(yaml.safe_dump(d))
+            return dfn.resolve(dfn.definition_from_dict({"scenarios": [str(p)], "seeds": [0], "runs": 50,
+                                                         "chunk_runs": 50, "duration_s": duration_campaign}))
+        try:
+            resolve(86400, 60)
+        except ValueError as e:
+            return dict(kind="result", ok=False, detail=f"a 60 s campaign of a 1-day file refused: {e}"[:600])
+        resolve(60, 86400)
+        return accepted("a 1-day campaign of 50 runs per task")
+    ''', match=r"campaign field 'duration_s' = 86400 / mpc\.update_period_s = 0\.5.*campaign chunk_runs = 50.*"
+                r"the simulation takes about .* days"),
     C("export_existing_and_unwritable", "runaway", "export/plot functions give raw tracebacks for unwritable or "
       "existing paths", '''
     def case(tmp):

@@ -62,6 +62,13 @@ def add_merge_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--force", action="store_true", help="replace an earlier merge in --out")
 
 
+def _flag_names(text: str, args) -> str:
+    """An error message with the campaign field given by a flag named as the flag too (``--duration``)."""
+    if args.duration is not None:
+        text = text.replace("campaign field 'duration_s'", "campaign field 'duration_s' (--duration)")
+    return text
+
+
 def run_campaign_cli(args, parser) -> int:
     from ..campaign import definition as d
     from ..campaign.runner import run_campaign
@@ -80,7 +87,7 @@ def run_campaign_cli(args, parser) -> int:
     except FileNotFoundError as exc:
         parser.error(str(exc))
     except ValueError as exc:
-        parser.error(str(exc).replace("campaign field 'duration_s'", "campaign field 'duration_s' (--duration)"))
+        parser.error(_flag_names(str(exc), args))
     if args.engine == "local" and (args.ray_address or args.gpus_per_task):
         parser.error("--ray-address and --gpus-per-task need --engine ray")
     from ..cache import enable_compilation_cache
@@ -103,7 +110,7 @@ def run_campaign_cli(args, parser) -> int:
         res = run_campaign(defn, args.out, engine=args.engine, workers=args.workers, ray_address=args.ray_address,
                            gpus_per_task=args.gpus_per_task, force=args.force, on_done=on_done)
     except (CampaignError, OutputError, ValueError) as exc:
-        print(f"psbmpc-jax campaign: error: {exc}", file=sys.stderr)
+        print(f"psbmpc-jax campaign: error: {_flag_names(str(exc), args)}", file=sys.stderr)
         return 2
     except RuntimeError as exc:        # --engine ray without Ray
         print(f"psbmpc-jax campaign: error: {exc}", file=sys.stderr)

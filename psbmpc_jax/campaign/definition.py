@@ -9,7 +9,7 @@ A campaign file (YAML, every key below; unknown keys are errors)::
     seeds: [0, 1]                   # base seeds (>= 0), or one integer
     runs: 200                       # Monte Carlo runs per scenario x method x seed
     chunk_runs: 50                  # at most this many runs per task (default 50)
-    duration_s: 60                  # optional: cut every scenario to this duration
+    duration_s: 60                  # optional: every scenario simulated for this long instead of its own duration_s
     batch: auto                     # auto | vmap | loop (as psbmpc-jax run --batch)
     trajectories: false             # true: every run's trajectories too (trajectories.parquet)
 
@@ -26,12 +26,11 @@ import os
 import pathlib
 import re
 
-from .. import simulation_time
 from ..checks import integer
 from ..scenario_checks import MAX_RUNS
 
 __all__ = ["CampaignDefinition", "Task", "DEFAULT_CHUNK_RUNS", "MAX_CAMPAIGN_RUNS", "load_definition",
-           "definition_from_dict", "resolve", "tasks", "definition_hash", "differences"]
+           "definition_from_dict", "resolve", "tasks", "definition_hash", "differences", "load_task_scenario"]
 
 #: Runs per task when the campaign does not say (a task is one ``simulate`` call).
 DEFAULT_CHUNK_RUNS = 50
@@ -183,13 +182,26 @@ def scenario_path(item: str) -> pathlib.Path:
     return builtin_path(item)
 
 
+#: How a campaign's fields are named when loading a scenario refuses them.
+RUNS_SETTING, DURATION_SETTING = "campaign chunk_runs", "campaign field 'duration_s'"
+
+
+def load_task_scenario(item: str, method: str | None, runs: int, duration_s: float | None):
+    """The scenario ``item`` as a task of the campaign simulates it: ``method`` (None: the file's), ``runs`` runs
+    and the campaign's ``duration_s`` (None: the file's) -- both checked at load, a refusal naming the campaign's
+    field (:func:`psbmpc_jax.scenario.load_scenario`), the duration recorded in ``Scenario.overrides``."""
+    from ..scenario import load_scenario
+
+    return load_scenario(item, method=method, runs=runs, runs_setting=RUNS_SETTING, duration_s=duration_s,
+                         duration_setting=DURATION_SETTING)
+
+
 def resolve(defn: CampaignDefinition) -> dict:
     """The resolved definition that a campaign folder stores and compares: the definition's fields, every
     scenario's name, file and SHA-256 (each loaded once with each method, so a bad scenario or method is
     refused before anything runs), and the package version and commit."""
     from .. import __version__
     from ..provenance import commit
-    from ..scenario import load_scenario
 
     scenarios = []
     for item in defn.scenarios:
@@ -197,24 +209,13 @@ def resolve(defn: CampaignDefinition) -> dict:
         names: set[str] = set()
         effective: dict[str, str | None] = {}
         for m in defn.methods:
-            try:
-                sc = load_scenario(item, method=m, runs=min(defn.chunk_runs, defn.runs),   # per task
-                                   runs_setting="campaign chunk_runs")
+            try:                        # as a task loads it: its runs, the campaign's duration
+                sc = load_task_scenario(item, m, min(defn.chunk_runs, defn.runs), defn.duration_s)
             except FileNotFoundError as exc:
                 raise ValueError(f"campaign field 'scenarios': {exc}") from None
             except ValueError as exc:
                 raise ValueError(f"campaign scenario {item!r}" + (f" with method {m!r}" if m else "") +
                                  f": {exc}") from None
-            if defn.duration_s is not None:
-                from ..checks import multiple_of
-
-                multiple_of(defn.duration_s, sc.dt, "campaign field 'duration_s'", f"{sc.name}'s step dt")
-                try:                    # the campaign's duration replaces the file's: its tasks' time again
-                    simulation_time.check(dataclasses.replace(sc, duration=float(defn.duration_s)),
-                                          min(defn.chunk_runs, defn.runs), runs_setting="campaign chunk_runs")
-                except ValueError as exc:
-                    raise ValueError(f"campaign scenario {item!r} with campaign field 'duration_s' = "
-                                     f"{defn.duration_s:g}: {exc}") from None
             names.add(sc.name)
             if sc.mpc.method in effective:
                 raise ValueError(f"campaign field 'methods': {effective[sc.mpc.method]!r} and {m!r} both run "

@@ -13,7 +13,6 @@ Every engine writes the same rows (the task's rows do not depend on where it ran
 
 from __future__ import annotations
 
-import dataclasses
 import hashlib
 import json
 import os
@@ -24,7 +23,7 @@ import sys
 import threading
 import time
 
-from .definition import Task, scenario_path, tasks
+from .definition import Task, load_task_scenario, scenario_path, tasks
 from .store import CampaignError, read_campaign, write_task
 
 __all__ = ["ENGINES", "run_task", "run_local", "run_ray", "ray_missing_message"]
@@ -37,7 +36,6 @@ def run_task(folder, task: Task, doc: dict) -> dict:
     ``{"task_id", "rows", "runs", "wall_s"}``."""
     from .. import __version__
     from ..provenance import commit
-    from ..scenario import load_scenario
     from ..scenario.load import estimator_key
     from ..sim import simulate
     from ..sim.output import safe_colregs_evaluation
@@ -58,9 +56,7 @@ def run_task(folder, task: Task, doc: dict) -> dict:
         raise RuntimeError(f"task {task.task_id}: the scenario file {rec['file']} changed since the campaign was "
                            f"defined (SHA-256 {rec['sha256'][:12]} then, {now[:12]} now); its rows would not match "
                            f"the others. Restore the file, or start a new campaign folder")
-    sc = load_scenario(task.scenario, method=task.method, runs=task.runs)
-    if d.get("duration_s") is not None:
-        sc = dataclasses.replace(sc, duration=float(d["duration_s"]))
+    sc = load_task_scenario(task.scenario, task.method, task.runs, d.get("duration_s"))
     result = simulate(sc, runs=task.runs, seed=task.seed, run_start=task.run_start, batch=d["batch"],
                       key=estimator_key(sc, task.seed))
     evaluation = safe_colregs_evaluation(result)

@@ -18,7 +18,10 @@ value, when it fired and why (:mod:`psbmpc_jax.evaltool.explain`); ``--out`` is 
 ``explain.json`` (with the evaluation settings), ``explain.txt`` and one figure per encounter, written as a
 run folder (:mod:`psbmpc_jax.runfolder`: staged, manifest last; another run's folder only with ``--force``,
 never an input's folder).
-Exit status 2 (with a message naming the file) for a file that cannot be read or scored.
+Before scoring anything, every file is read and the time of scoring all their runs is estimated, printed on
+stderr and checked against the limit (:func:`psbmpc_jax.limits.check_evaluation_time`, 1 h or
+``PSBMPC_EVALUATION_TIME_LIMIT``).  Exit status 2 (with a message naming the file) for a file that cannot be read
+or scored, or for an evaluation above the time limit.
 """
 
 from __future__ import annotations
@@ -32,7 +35,8 @@ import sys
 
 from ..safe_io import OutputError, atomic_write_text, file_output_problem, read_json_document, same_file
 from .aggregate import aggregate
-from .evaluate import PAIR_MODES, evaluate_tracks
+from ..limits import check_evaluation_time, describe_evaluation
+from .evaluate import PAIR_MODES, evaluate_tracks, run_shapes
 from .explain import EXPLAIN_SCHEMA, explain_encounter, explanation_text
 from .params import PRESETS, EvalParams, scaled_params
 from .tracks import load_runs
@@ -260,6 +264,35 @@ def encounter_line(run: int, e) -> str:
             + (f"  [{', '.join(pen)}]" if pen else ""))
 
 
+def _file_failed(path, exc) -> int:
+    """Report a file that cannot be read or scored (its name first) and return the exit status 2."""
+    text = str(exc)
+    named = text.startswith(str(path)) or text.startswith(str(pathlib.Path(path)))
+    print(f"psbmpc-jax evaluate: {text if named else f'{path}: {text}'}", file=sys.stderr)
+    return 2
+
+
+def _check_time(loaded, pairs: str, quiet: bool = False) -> float:
+    """Log the estimated time of scoring every run of every file read (``loaded``: ``(path, stored, params,
+    runs)``) on stderr (not when ``quiet``: ``psbmpc-jax -q``), and refuse it above the limit
+    (:func:`psbmpc_jax.limits.check_evaluation_time`: ResourceError naming the files, samples, vessels, pairs,
+    estimate and limit)."""
+    shapes, paths = [], [str(path) for path, *_ in loaded]
+    for _, _, params, runs in loaded:
+        shapes += run_shapes(runs, params.sample_interval_s)
+    dts = sorted({params.sample_interval_s for _, _, params, _ in loaded})
+    what = paths[0] if len(paths) == 1 else (f"{len(paths)} track files ({', '.join(paths[:3])}"
+                                             + (", ..." if len(paths) > 3 else "") + ")")
+    if not quiet:
+        print(f"psbmpc-jax evaluate: scoring {what}: {describe_evaluation(shapes, pairs)}", file=sys.stderr,
+              flush=True)
+    return check_evaluation_time(
+        shapes, pairs, what=f"evaluation of {what}", pairs_setting="--pairs",
+        sample_interval="sample_interval_s = " + " / ".join(f"{dt:g}" for dt in dts) + " s",
+        hint="Fewer or shorter track files per call" + (", --pairs own" if pairs == "all" else "")
+             + " or a larger sample interval (--set sample_interval_s=...)")
+
+
 def run_evaluate(args, parser: argparse.ArgumentParser) -> int:
     try:                                          # the options alone: a usage error before any file is read
         _overrides(args)
@@ -276,9 +309,7 @@ def run_evaluate(args, parser: argparse.ArgumentParser) -> int:
             problem = output_problem(args.out, args.paths, force=args.force)
         if problem:
             parser.error(problem)
-    docs: list[dict] = []
-    texts: list[str] = []
-    figures: list[tuple] = []
+    loaded = []                 # every file read (and its settings) before any is scored: the time of them all
     for path in args.paths:
         try:
             stored = stored_params(path)
@@ -290,13 +321,22 @@ def run_evaluate(args, parser: argparse.ArgumentParser) -> int:
         except ValueError as exc:
             parser.error(str(exc) if stored is None else f"{path}: {exc}")
         try:
-            runs = load_runs(path, own=args.own, dt=args.dt)
+            loaded.append((path, stored, params, load_runs(path, own=args.own, dt=args.dt)))
+        except (OSError, ValueError, KeyError) as exc:
+            return _file_failed(path, exc)
+    try:
+        _check_time(loaded, args.pairs, quiet=getattr(args, "log_quiet", False))
+    except ValueError as exc:
+        print(f"psbmpc-jax evaluate: {exc}", file=sys.stderr)
+        return 2
+    docs: list[dict] = []
+    texts: list[str] = []
+    figures: list[tuple] = []
+    for path, stored, params, runs in loaded:
+        try:
             evs = [evaluate_tracks(tr, params, pairs=args.pairs) for tr in runs]
         except (OSError, ValueError, KeyError) as exc:
-            text = str(exc)
-            named = text.startswith(str(path)) or text.startswith(str(pathlib.Path(path)))
-            print(f"psbmpc-jax evaluate: {text if named else f'{path}: {text}'}", file=sys.stderr)
-            return 2
+            return _file_failed(path, exc)
         explicit = args.preset is not None or args.range_scale is not None
         if stored is not None and not explicit:
             source = f"the run's stored evaluation settings ({stored[1]})"

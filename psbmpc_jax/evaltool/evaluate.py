@@ -7,10 +7,10 @@ from .geometry import GIVE_WAY, pair_geometry, stages
 from .maneuvers import detect_maneuvers
 from .params import EvalParams, get_params
 from .results import Evaluation
-from ..limits import check_evaluation
+from ..limits import check_evaluation, check_evaluation_time, evaluation_samples
 from .tracks import Tracks, check_units, own_index, load_runs
 
-__all__ = ["evaluate_tracks", "evaluate_file", "PAIR_MODES"]
+__all__ = ["evaluate_tracks", "evaluate_file", "PAIR_MODES", "run_shapes"]
 
 #: ``own``: the own-ship against every other vessel; ``all``: every ordered pair (i, j), i != j.
 PAIR_MODES = ("own", "all")
@@ -20,6 +20,12 @@ def _pairs(n_vessels: int, own: int, mode: str) -> list[tuple[int, int]]:
     if mode == "own":
         return [(own, j) for j in range(n_vessels) if j != own]
     return [(i, j) for i in range(n_vessels) for j in range(n_vessels) if i != j]
+
+
+def run_shapes(runs, dt: float) -> list[tuple[int, int]]:
+    """``(samples, vessels)`` of every :class:`Tracks` of ``runs`` resampled every ``dt`` seconds (what
+    :func:`psbmpc_jax.limits.check_evaluation_time` estimates the time of)."""
+    return [(evaluation_samples(float(tr.t[-1] - tr.t[0]), dt), tr.n_vessels) for tr in runs]
 
 
 def evaluate_tracks(tracks: Tracks, params: EvalParams | str | None = "default", *, own=None,
@@ -43,7 +49,8 @@ def evaluate_tracks(tracks: Tracks, params: EvalParams | str | None = "default",
             whose units are implausible (:func:`psbmpc_jax.evaltool.tracks.check_units`: speeds above 100 m/s,
             latitude/longitude in degrees read as metres).
         psbmpc_jax.limits.ResourceError: the resampled tracks would need more memory than the limit
-            (:func:`psbmpc_jax.limits.check_evaluation`), checked before anything is allocated.
+            (:func:`psbmpc_jax.limits.check_evaluation`), or scoring them would take longer than the time limit
+            (:func:`psbmpc_jax.limits.check_evaluation_time`), checked before anything is allocated.
     """
     p = get_params(params, **overrides)
     if pairs not in PAIR_MODES:
@@ -53,6 +60,9 @@ def evaluate_tracks(tracks: Tracks, params: EvalParams | str | None = "default",
     # the memory of the resampled tracks and of every pair's geometry, before any of it is allocated
     check_evaluation(float(tracks.t[-1] - tracks.t[0]), p.sample_interval_s, tracks.n_vessels, pairs,
                      setting=f"evaluation of {tracks.source or 'tracks'}: sample_interval_s")
+    check_evaluation_time(run_shapes([tracks], p.sample_interval_s), pairs,
+                          what=f"evaluation of {tracks.source or 'tracks'}",
+                          sample_interval=f"sample_interval_s = {p.sample_interval_s:g} s")
     tr = tracks.resample(p.sample_interval_s)
     dt = p.sample_interval_s
     man = [detect_maneuvers(tr.course[v], tr.speed[v], dt, p) for v in range(tr.n_vessels)]
@@ -88,7 +98,12 @@ def evaluate_file(path, params: EvalParams | str | None = "default", *, own=None
                   dt: float | None = None, **overrides) -> list[Evaluation]:
     """Evaluate every run of a trajectory file (a user CSV, an AIS-style CSV, or the simulator's
     ``trajectories.npz`` / ``.csv`` or its output folder; see :func:`psbmpc_jax.evaltool.load_runs`, which
-    ``own`` and ``dt`` are passed to): one :class:`Evaluation` per run (a CSV has one)."""
+    ``own`` and ``dt`` are passed to): one :class:`Evaluation` per run (a CSV has one).  The time of scoring
+    every run is checked before the first is scored (:func:`psbmpc_jax.limits.check_evaluation_time`)."""
     p = get_params(params, **overrides)
+    if pairs not in PAIR_MODES:
+        raise ValueError(f"pairs must be one of {PAIR_MODES}, got {pairs!r}")
     runs = load_runs(path, own=own, dt=dt)
+    check_evaluation_time(run_shapes(runs, p.sample_interval_s), pairs, what=f"evaluation of {path}",
+                          sample_interval=f"sample_interval_s = {p.sample_interval_s:g} s")
     return [evaluate_tracks(tr, p, pairs=pairs) for tr in runs]

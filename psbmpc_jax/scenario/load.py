@@ -44,14 +44,20 @@ def _simulation(d) -> tuple[float, float]:
     d = as_mapping(d, "simulation")
     check_keys(d, _SIM_KEYS, "simulation", required=_SIM_KEYS)
     dt = as_number(d["dt_s"], "simulation.dt_s", gt=0)
-    duration = as_number(d["duration_s"], "simulation.duration_s", gt=0, le=limits.MAX_DURATION_S)
+    return dt, _duration(d["duration_s"], dt, "simulation.duration_s")
+
+
+def _duration(value, dt: float, setting: str) -> float:
+    """A simulation's duration [s]: the file's ``simulation.duration_s`` or a caller's override (``setting`` names
+    it): a number in (0, MAX_DURATION_S], at least ``dt``, a multiple of it, at most MAX_STEPS steps."""
+    duration = as_number(value, setting, gt=0, le=limits.MAX_DURATION_S)
     if dt > duration:
-        raise ValueError(f"simulation.dt_s ({dt:g}) must be <= simulation.duration_s ({duration:g})")
+        raise ValueError(f"simulation.dt_s ({dt:g}) must be <= {setting} ({duration:g})")
     if duration / dt > limits.MAX_STEPS * (1 + 1e-9):
-        raise ValueError(f"simulation.duration_s / simulation.dt_s = {duration / dt:.6g} steps; at most "
+        raise ValueError(f"{setting} / simulation.dt_s = {duration / dt:.6g} steps; at most "
                          f"{limits.MAX_STEPS} allowed (a larger dt_s or a shorter duration_s)")
-    multiple_of(duration, dt, "simulation.duration_s", "simulation.dt_s")
-    return dt, duration
+    multiple_of(duration, dt, setting, "simulation.dt_s")
+    return duration
 
 
 def _monte_carlo(d) -> tuple[int, int]:
@@ -65,7 +71,8 @@ def _monte_carlo(d) -> tuple[int, int]:
 # ---------------------------------------------------------------------------------------------- public API
 def scenario_from_dict(data: dict, base_dir=None, source: str | None = None, *, land_checks: str = "warn",
                        method: str | None = None, simulated_runs: int | None = None,
-                       runs_setting: str = "runs") -> Scenario:
+                       runs_setting: str = "runs", duration_s: float | None = None,
+                       duration_setting: str = "duration_s") -> Scenario:
     """Validate a scenario mapping (the parsed YAML, schema in ``docs/scenarios.md``) and build a
     :class:`Scenario` in SI units, radians and the local NED frame.
 
@@ -82,6 +89,12 @@ def scenario_from_dict(data: dict, base_dir=None, source: str | None = None, *, 
             mapping is validated, so the file is checked as if it said so.
         simulated_runs, runs_setting: the runs the caller will simulate when not the mapping's (the time of the
             whole simulation is checked for them, and a refusal names them as ``runs_setting``).
+        duration_s, duration_setting: a duration [s] that replaces ``simulation.duration_s`` (a campaign's
+            ``duration_s``), validated as the file's field is (a refusal names it as ``duration_setting``); every
+            check that depends on the duration (the simulator's memory, the evaluation's memory, the time of the
+            whole simulation, the land checks) is made for it, not for the file's.  The ships are read against
+            the longer of the two (a ``speed_plan`` entry after a shorter override's end never applies; a default
+            route is long enough for a longer one).  Recorded in ``Scenario.overrides``.
 
     Raises:
         ValueError: unknown or missing keys, wrong types, non-finite numbers, values out of range, unit
@@ -101,6 +114,10 @@ def scenario_from_dict(data: dict, base_dir=None, source: str | None = None, *, 
     if not isinstance(description, str):
         raise ValueError(f"description must be a string, got {description!r}")
     dt, duration = _simulation(data["simulation"])
+    file_duration, overrides = duration, {}
+    if duration_s is not None:
+        duration = _duration(duration_s, dt, duration_setting)
+        overrides["simulation.duration_s"] = {"file": file_duration, "used": duration, "by": duration_setting}
     runs, seed = _monte_carlo(data.get("monte_carlo", {}) or {})
     mpc = read_mpc(data["mpc"], dt)
     sensor = read_sensor(data.get("sensor", {}) or {}, dt)
@@ -128,7 +145,8 @@ def scenario_from_dict(data: dict, base_dir=None, source: str | None = None, *, 
     n_steps = int(round(duration / dt))
     mem = limits.simulation_memory_bytes(n_steps, runs, len(tl) + 1)
     if mem > limits.MAX_SIM_MEMORY_BYTES:
-        raise ValueError(f"monte_carlo.runs ({runs}) x {n_steps + 1} steps (simulation.duration_s / dt_s) x "
+        dur = "simulation.duration_s" if duration_s is None else duration_setting
+        raise ValueError(f"monte_carlo.runs ({runs}) x {n_steps + 1} steps ({dur} / simulation.dt_s) x "
                          f"{len(tl) + 1} ships need about {mem / 1024 ** 3:.1f} GiB of simulator memory; at most "
                          f"{limits.MAX_SIM_MEMORY_BYTES / 1024 ** 3:.0f} GiB allowed -- fewer runs, a shorter "
                          f"duration_s or a larger dt_s")
@@ -138,8 +156,9 @@ def scenario_from_dict(data: dict, base_dir=None, source: str | None = None, *, 
                                setting="evaluation.sample_interval_s",
                                hint="Use a larger evaluation.sample_interval_s (default 1 s)")
 
-    ctx = dict(chart=chart, duration=duration, params=mpc.params, origin_latlon=origin_ll, method=mpc.method,
-               colregs_option=mpc.colregs_option)
+    # the ships: speed plans against the file's duration, default routes long enough for the longer of the two
+    ctx = dict(chart=chart, duration=file_duration, route_duration=max(duration, file_duration), params=mpc.params,
+               origin_latlon=origin_ll, method=mpc.method, colregs_option=mpc.colregs_option)
     own = read_ship(data["own_ship"], "own_ship", own=True, ctx=ctx)
     targets = tuple(read_ship(t, f"targets[{i}]", own=False, ctx=ctx) for i, t in enumerate(tl))
     seen = {own.name: "own_ship"}
@@ -211,7 +230,7 @@ def scenario_from_dict(data: dict, base_dir=None, source: str | None = None, *, 
     _check_update_time(mpc, len(targets), int(info["n_vertices"]))
     scenario = Scenario(name=name, description=description, own_ship=own, targets=targets, sensor=sensor, mpc=mpc,
                         polygons=rings, chart_info=info, dt=dt, duration=duration, runs=runs, seed=seed,
-                        collision_distance=coll, source=source, evaluation=evaluation)
+                        collision_distance=coll, source=source, evaluation=evaluation, overrides=overrides)
     # the whole simulation: updates x runs x planners, for the runs the caller will make (the file's by default)
     if simulated_runs is None:
         simulation_time.check(scenario)
@@ -324,7 +343,8 @@ def read_utf8(path, what: str) -> str:
 
 
 def load_scenario(path_or_name, *, land_checks: str = "error", method: str | None = None,
-                  runs: int | None = None, runs_setting: str = "runs") -> Scenario:
+                  runs: int | None = None, runs_setting: str = "runs", duration_s: float | None = None,
+                  duration_setting: str = "duration_s") -> Scenario:
     """Load and validate a scenario: a path to a ``.yaml`` / ``.yml`` file, or the name of a built-in scenario
     (:func:`builtin_scenarios`, e.g. ``"head_on"``, ``"imazu_01"``).
 
@@ -334,7 +354,10 @@ def load_scenario(path_or_name, *, land_checks: str = "error", method: str | Non
     the file's ``mpc.method`` (validated as if the file said so).  ``runs``: the Monte Carlo runs the caller will
     simulate when not the file's (a ``--runs`` override, a campaign's tasks): the time of the whole simulation is
     checked for them (:mod:`psbmpc_jax.simulation_time`) instead of for the file's ``monte_carlo.runs``, and a
-    refusal names them as ``runs_setting``.
+    refusal names them as ``runs_setting``.  ``duration_s``: the duration the caller will simulate when not the
+    file's ``simulation.duration_s`` (a campaign's ``duration_s``): validated as the file's field (a refusal names
+    it as ``duration_setting``), every check that depends on the duration made for it, and recorded in
+    ``Scenario.overrides`` (the run's ``metrics.json``: ``scenario.overrides``).
 
     Raises:
         ValueError: unknown built-in name (the message lists them), invalid YAML or an invalid scenario.
@@ -364,6 +387,7 @@ def load_scenario(path_or_name, *, land_checks: str = "error", method: str | Non
                          f"{type(data).__name__}")
     try:
         return scenario_from_dict(data, base_dir=path.parent, source=where, land_checks=land_checks, method=method,
-                                  simulated_runs=runs, runs_setting=runs_setting)
+                                  simulated_runs=runs, runs_setting=runs_setting, duration_s=duration_s,
+                                  duration_setting=duration_setting)
     except ValueError as exc:
         raise ValueError(f"{where}: {exc}") from None

@@ -193,6 +193,9 @@ class Scenario:
         source: the file it was loaded from (``None`` if built in code).
         evaluation: the parameters of the COLREGS evaluation of the runs (:mod:`psbmpc_jax.evaltool`; the file's
             ``evaluation`` section: a preset and overrides of :class:`~psbmpc_jax.evaltool.EvalParams` fields).
+        overrides: the file's settings its loader replaced, by key: ``{"simulation.duration_s": {"file": 300.0,
+            "used": 60.0, "by": "campaign field 'duration_s'"}}`` (``load_scenario(..., duration_s=)``); empty
+            when the file's own settings are used.  Recorded in the run's ``metrics.json``.
     """
 
     name: str
@@ -210,6 +213,7 @@ class Scenario:
     collision_distance: float | None = None
     source: str | None = None
     evaluation: EvalParams = field(default_factory=EvalParams)
+    overrides: dict = field(default_factory=dict)
 
     @property
     def ships(self) -> tuple[ShipSpec, ...]:

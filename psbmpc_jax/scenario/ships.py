@@ -133,7 +133,7 @@ def read_ship(d, where: str, *, own: bool, ctx: dict) -> ShipSpec:
     wkey = one_of(d, ("waypoints_m", "waypoints_utm", "waypoints_latlon"), where, required=False)
     if wkey is None:
         U_max = max([speed, U_d] + ([] if plan is None else list(plan[:, 1])))
-        length = max(2.0 * U_max * ctx["duration"], DEFAULT_ROUTE_MIN_M)
+        length = max(2.0 * U_max * ctx["route_duration"], DEFAULT_ROUTE_MIN_M)
         wps = np.stack([pos, pos + length * direction_of(course_deg)])
     else:
         if isinstance(d[wkey], (list, tuple)) and len(d[wkey]) > limits.MAX_WAYPOINTS:

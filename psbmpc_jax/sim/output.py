@@ -58,14 +58,15 @@ def _clean(obj, digits: int | None = None):
 
 
 def scenario_info(sc) -> dict:
-    """The settings a reader needs to reproduce the numbers (SI units); a ship's resolved COLREGS option is in its
-    entry of ``ships`` when the option is on for some ship (docs/colregs_option.md)."""
+    """The settings a reader needs to reproduce the numbers (SI units); ``overrides``: the file's settings its
+    loader replaced (a campaign's ``duration_s``: ``Scenario.overrides``); a ship's resolved COLREGS option is in
+    its entry of ``ships`` when the option is on for some ship (docs/colregs_option.md)."""
     from ..methods.builtin import ship_option_record
 
     p = sc.mpc.params
     return {
         "name": sc.name, "description": sc.description, "source": sc.source,
-        "duration_s": sc.duration, "dt_s": sc.dt, "runs": sc.runs, "seed": sc.seed,
+        "duration_s": sc.duration, "dt_s": sc.dt, "runs": sc.runs, "seed": sc.seed, "overrides": sc.overrides,
         "collision_distance_m": sc.d_collision,
         "mpc": {"method": sc.mpc.method, "preset": sc.mpc.preset, "update_period_s": sc.mpc.period,
                 "n_ps": sc.mpc.n_ps, "n_cbs": int(len(sc.mpc.behaviours)), "config": vars(sc.mpc.config).copy(),
