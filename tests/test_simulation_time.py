@@ -224,3 +224,21 @@ def test_a_campaign_is_checked_for_its_task_size_and_duration(monkeypatch):
         d.resolve(d.definition_from_dict({**base, "chunk_runs": 20}, source="t.yaml"))
     with pytest.raises(ValueError, match="campaign field 'duration_s' = 40000"):
         d.resolve(d.definition_from_dict({**base, "chunk_runs": 1, "duration_s": 40000}, source="t.yaml"))
+
+
+def test_the_simulator_memory_is_checked_for_the_runs_the_caller_will_make():
+    """A file of many runs whose simulator memory is over the 2 GiB cap loads for the runs a caller simulates in
+    one call (a --runs override, a campaign task's chunk) and is refused for more, naming that setting."""
+    import yaml
+
+    from psbmpc_jax.scenario import scenario_from_dict
+    from psbmpc_jax.scenario.load import SCENARIO_DIR
+
+    data = yaml.safe_load((SCENARIO_DIR / "head_on.yaml").read_text())
+    data["monte_carlo"]["runs"] = 10000
+    data["simulation"]["duration_s"] = 3600.0
+    with pytest.raises(ValueError, match=r"monte_carlo.runs \(10000\) x .* GiB of simulator memory"):
+        scenario_from_dict(data, source="many")
+    with pytest.raises(ValueError, match=r"--runs \(5000\) x .* GiB of simulator memory"):
+        scenario_from_dict(data, source="many", simulated_runs=5000, runs_setting="--runs")
+    assert scenario_from_dict(data, source="many", simulated_runs=2).runs == 10000

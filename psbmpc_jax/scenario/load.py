@@ -87,8 +87,9 @@ def scenario_from_dict(data: dict, base_dir=None, source: str | None = None, *, 
             :class:`~psbmpc_jax.scenario_checks.ScenarioWarning` per problem, ``"off"`` skips the checks.
         method: overrides ``mpc.method`` (one of :data:`METHODS`; ``psbmpc-jax run --method``) before the
             mapping is validated, so the file is checked as if it said so.
-        simulated_runs, runs_setting: the runs the caller will simulate when not the mapping's (the time of the
-            whole simulation is checked for them, and a refusal names them as ``runs_setting``).
+        simulated_runs, runs_setting: the runs the caller will simulate when not the mapping's (the simulator's
+            memory and the time of the whole simulation are checked for them, and a refusal names them as
+            ``runs_setting``).
         duration_s, duration_setting: a duration [s] that replaces ``simulation.duration_s`` (a campaign's
             ``duration_s``), validated as the file's field is (a refusal names it as ``duration_setting``); every
             check that depends on the duration (the simulator's memory, the evaluation's memory, the time of the
@@ -143,10 +144,14 @@ def scenario_from_dict(data: dict, base_dir=None, source: str | None = None, *, 
         raise ValueError(f"targets: {len(tl)} target ships; at most {limits.MAX_SHIPS - 1} allowed (plus the "
                          f"own-ship)")
     n_steps = int(round(duration / dt))
-    mem = limits.simulation_memory_bytes(n_steps, runs, len(tl) + 1)
+    # the simulator's memory for the runs the caller will simulate in one call (the file's by default)
+    if simulated_runs is not None:
+        simulated_runs = integer(simulated_runs, runs_setting, ge=1)
+    sim_runs, runs_name = (runs, "monte_carlo.runs") if simulated_runs is None else (simulated_runs, runs_setting)
+    mem = limits.simulation_memory_bytes(n_steps, sim_runs, len(tl) + 1)
     if mem > limits.MAX_SIM_MEMORY_BYTES:
         dur = "simulation.duration_s" if duration_s is None else duration_setting
-        raise ValueError(f"monte_carlo.runs ({runs}) x {n_steps + 1} steps ({dur} / simulation.dt_s) x "
+        raise ValueError(f"{runs_name} ({sim_runs}) x {n_steps + 1} steps ({dur} / simulation.dt_s) x "
                          f"{len(tl) + 1} ships need about {mem / 1024 ** 3:.1f} GiB of simulator memory; at most "
                          f"{limits.MAX_SIM_MEMORY_BYTES / 1024 ** 3:.0f} GiB allowed -- fewer runs, a shorter "
                          f"duration_s or a larger dt_s")
@@ -235,7 +240,7 @@ def scenario_from_dict(data: dict, base_dir=None, source: str | None = None, *, 
     if simulated_runs is None:
         simulation_time.check(scenario)
     else:
-        simulation_time.check(scenario, integer(simulated_runs, runs_setting, ge=1), runs_setting=runs_setting)
+        simulation_time.check(scenario, simulated_runs, runs_setting=runs_setting)
     return scenario
 
 
