@@ -2,7 +2,8 @@
 
 Off by default.  ``PSBMPC_TEST_PROFILE=DIR python -m pytest ...`` writes one JSON line per test to
 ``DIR/<worker>.jsonl`` (test id, wall seconds of setup + call + teardown, seconds and count of XLA backend
-compiles, jaxpr tracing and MLIR lowering seconds, and the compiled functions' names with their seconds).
+compiles, jaxpr tracing and MLIR lowering seconds, the compiled functions' names with their seconds, and whether
+the memory-map guard cleared JAX's caches after it).
 ``python tools/suite_profile.py DIR`` sums it per file and lists the programs compiled most often.
 It uses JAX's own monitoring events (``jax.monitoring``), so it measures what JAX reports, nothing patched."""
 
@@ -45,7 +46,14 @@ class CompileProfile:
 
     def start(self, nodeid: str) -> None:
         self.current = {"test": nodeid, "t0": time.perf_counter(), "compile_s": 0.0, "trace_s": 0.0,
-                        "lower_s": 0.0, "cache_saved_s": 0.0, "n_compiles": 0, "programs": defaultdict(float)}
+                        "lower_s": 0.0, "cache_saved_s": 0.0, "n_compiles": 0, "programs": defaultdict(float),
+                        "caches_cleared": False}
+
+    def note_cache_clear(self) -> None:
+        """The memory-map guard (conftest) cleared JAX's caches after the current test: later tests compile
+        again what they need."""
+        if self.current is not None:
+            self.current["caches_cleared"] = True
 
     def stop(self) -> None:
         rec, self.current = self.current, None

@@ -75,7 +75,8 @@ def release_compiled_programs(share: float = MAP_SHARE, count=map_count, limit=m
 
 @pytest.hookimpl(trylast=True)
 def pytest_runtest_teardown(item, nextitem):
-    release_compiled_programs()
+    if release_compiled_programs() and _PROFILE is not None:
+        _PROFILE.note_cache_clear()
 
 
 #: PSBMPC_TEST_PROFILE=DIR: wall and XLA compile time per test (tests/compile_profile.py, tools/suite_profile.py)

@@ -49,8 +49,9 @@ def test_summary_sums_files_and_programs(tmp_path, capsys):
     rec = tmp_path / "rec" / "profile.json"
     suite_profile.main([str(tmp_path), "--json", str(rec), "--commit", "abc123"])
     doc = json.loads(rec.read_text())
-    assert doc["meta"]["commit"] == "abc123" and doc["totals"] == {"tests": 2, "worker_s": 14.0,
-                                                                   "trace_lower_compile_s": 10.0, "compiles": 3}
+    assert doc["meta"]["commit"] == "abc123" and doc["totals"] == {
+        "tests": 2, "worker_s": 14.0, "trace_lower_compile_s": 10.0, "compiles": 3, "cache_clears": 0,
+        "compile_s_after_clears_upper_bound": 0.0}
     assert doc["programs"]["jit(solve)"] == {"compile_s": 7.0, "tests": 2}
     assert list(doc["files"]) == ["tests/test_a.py", "tests/test_b.py"]
     with pytest.raises(SystemExit, match="exists"):                 # a record is never overwritten
@@ -63,3 +64,24 @@ def test_summary_refuses_an_empty_folder_and_a_bad_line(tmp_path):
     (tmp_path / "gw1.jsonl").write_text("{not json\n")
     with pytest.raises(SystemExit, match="gw1.jsonl:1: not a JSON line"):
         suite_profile.main([str(tmp_path)])
+
+
+def test_cache_clears_and_the_compiles_after_them_are_counted_per_worker(tmp_path):
+    """A clear after a test (the memory-map guard) evicts what that worker compiled before: a later compile of a
+    program of the same name in that worker counts; the other worker's does not."""
+    prof = CompileProfile(str(tmp_path), "gw0")
+    try:
+        prof.start("tests/test_x.py::a")
+        prof.note_cache_clear()
+        prof.stop()
+    finally:
+        prof.close()
+    assert json.loads((tmp_path / "gw0.jsonl").read_text())["caches_cleared"] is True
+    row = lambda test, progs, cleared=False: {"test": test, "wall_s": 1.0, "compile_s": sum(progs.values()),  # noqa: E731
+                                              "trace_s": 0.0, "lower_s": 0.0, "n_compiles": len(progs),
+                                              "programs": progs, "caches_cleared": cleared}
+    (tmp_path / "gw0.jsonl").write_text("\n".join(json.dumps(r) for r in [
+        row("t::1", {"jit(solve)": 5.0}), row("t::2", {"jit(f)": 1.0}, cleared=True),
+        row("t::3", {"jit(solve)": 4.0, "jit(g)": 2.0}), row("t::4", {"jit(f)": 1.5})]) + "\n")
+    (tmp_path / "gw1.jsonl").write_text(json.dumps(row("t::5", {"jit(solve)": 3.0})) + "\n")
+    assert suite_profile.cache_clears(suite_profile.load(tmp_path)) == (1, 5.5)

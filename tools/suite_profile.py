@@ -15,16 +15,35 @@ from pathlib import Path
 
 
 def load(folder: Path) -> list[dict]:
+    """Every test's row, in each worker's order, with the worker's name (its file) as ``worker``."""
     rows = []
     for path in sorted(folder.glob("*.jsonl")):
         for n, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1):
             try:
-                rows.append(json.loads(line))
+                rows.append({**json.loads(line), "worker": path.stem})
             except json.JSONDecodeError as exc:
                 raise SystemExit(f"{path}:{n}: not a JSON line ({exc})") from None
     if not rows:
         raise SystemExit(f"{folder}: no *.jsonl profile lines (run pytest with PSBMPC_TEST_PROFILE={folder})")
     return rows
+
+
+def cache_clears(rows: list[dict]) -> tuple[int, float]:
+    """The memory-map guard's cache clears and the compile seconds, after a clear, of programs (by name) that the
+    same worker had compiled before it: an upper bound of what the clears cost (a name covers every shape)."""
+    clears, after = 0, 0.0
+    seen: dict[str, set] = defaultdict(set)
+    evicted: dict[str, set] = defaultdict(set)
+    for r in rows:
+        w = r.get("worker", "")
+        for name, sec in r["programs"].items():
+            if name in evicted[w]:
+                after += sec
+            seen[w].add(name)
+        if r.get("caches_cleared"):
+            clears += 1
+            evicted[w] |= seen[w]
+    return clears, after
 
 
 def write_record(rows: list[dict], out: Path, commit: str | None) -> None:
@@ -53,7 +72,9 @@ def write_record(rows: list[dict], out: Path, commit: str | None) -> None:
                     "jax": jax.__version__, "platform": platform.machine(), "cpu_count": os.cpu_count()},
            "totals": {"tests": len(rows), "worker_s": round(sum(r["wall_s"] for r in rows), 1),
                       "trace_lower_compile_s": round(sum(r["compile_s"] + r["trace_s"] + r["lower_s"] for r in rows), 1),
-                      "compiles": sum(r["n_compiles"] for r in rows)},
+                      "compiles": sum(r["n_compiles"] for r in rows),
+                      "cache_clears": cache_clears(rows)[0],
+                      "compile_s_after_clears_upper_bound": round(cache_clears(rows)[1], 1)},
            "files": {k: {kk: round(vv, 1) if isinstance(vv, float) else vv for kk, vv in v.items()}
                      for k, v in sorted(files.items(), key=lambda kv: -kv[1]["wall_s"])},
            "programs": {k: {"compile_s": round(v["compile_s"], 1), "tests": v["tests"]}
@@ -81,6 +102,9 @@ def main(argv=None) -> None:
     comp = sum(r["compile_s"] + r["trace_s"] + r["lower_s"] for r in rows)
     print(f"{len(rows)} tests: {wall:.0f} worker-s, of which trace+lower+compile {comp:.0f} s "
           f"({100 * comp / wall:.0f} %), {sum(r['n_compiles'] for r in rows)} compiles")
+    clears, after = cache_clears(rows)
+    print(f"{clears} cache clears by the memory-map guard; compiling again, after them, programs of the names "
+          f"compiled before: at most {after:.0f} s")
     files: dict = defaultdict(lambda: [0.0, 0.0, 0])
     for r in rows:
         f = files[r["test"].split("::")[0]]
