@@ -169,3 +169,33 @@ def test_readme_tested_limits_come_from_the_committed_measurements():
         _, _, memory, wall = rows[label]
         assert memory == fmt_bytes(point["peak_rss_bytes"]), (label, memory, point["peak_rss_bytes"])
         assert wall == f"{point['wall_s']:.0f} s", (label, wall, point["wall_s"])
+
+
+#: The README's "Tested limits" rows that come from the campaign benchmark (benchmarks/bench_campaign_memory.py):
+#: label -> the kind of point in benchmarks/results/campaign_memory_cpu_*.json ("memory": the one with most runs).
+CAMPAIGN_LIMIT_ROWS = {"campaign runs (`psbmpc-jax campaign`)": "memory", "Nidelva campaign": "nidelva"}
+
+
+def test_readme_campaign_limits_come_from_the_committed_measurements():
+    """The README's campaign rows state the peak memory, wall time and runs of the committed campaign record."""
+    import json
+
+    from psbmpc_jax.limits import fmt_bytes
+
+    section = README.read_text().split("## Tested limits", 1)[1].split("\n## ", 1)[0]
+    rows = {cells[0]: cells for cells in ([c.strip() for c in line.strip("|").split("|")]
+                                          for line in section.splitlines() if line.startswith("| "))}
+    measured = {}
+    for path in sorted((ROOT / "benchmarks" / "results").glob("campaign_memory_cpu_*.json")):
+        for point in json.loads(path.read_text())["points"]:
+            if point["what"] in ("memory", "nidelva") and (
+                    point["what"] != "memory" or point["runs"] >= measured.get("memory", {}).get("runs", 0)):
+                measured[point["what"]] = point
+    for label, what in CAMPAIGN_LIMIT_ROWS.items():
+        assert label in rows, f"README Tested limits: no row {label!r}"
+        point = measured[what]
+        _, tested, memory, wall = rows[label]
+        assert tested.startswith(f"{point['runs']:,} runs".replace(",", " ")), (label, tested, point["runs"])
+        assert memory == fmt_bytes(point.get("peak_rss_bytes", point["peak_rss_mib"] * 2 ** 20)), (label, memory)
+        assert wall == f"{point['wall_s']:.0f} s", (label, wall, point["wall_s"])
+
