@@ -521,6 +521,7 @@ def problem(config: PlannerConfig, n_ref: int, block: int):
     """``f(z, (data, tail))`` and ``f_full(u, (data, tail))`` for static sizes (cached: the solver hashes them by
     identity, so one compilation serves every call)."""
 
+    @jax.jit
     def f_full(u, a):
         d, _ = a
         # the data's dtype: optax's line search computes its trial points with a float64 step when 64-bit JAX
@@ -605,13 +606,14 @@ def _refine(inputs, best, last_offsets, params, samples, evaluation, solver, pat
     start = jnp.where(kept.used_warm, w, k).astype(jnp.int32)
 
     data_grid = data._replace(terms=grid_terms_fast(grid_terms))
-    grid = lambda u: sum(term_costs(u, data_grid, config, samples).values())  # noqa: E731
+    grid = jax.jit(lambda u, d, s: sum(term_costs(u, d, config, s).values()))  # noqa: E731
     traj = rollout(kept.u, data, config)
     trajectory = jnp.stack([traj.x[:, 0], traj.y[:, 0], traj.chi[:, 0], traj.U[:, 0]], axis=-1)
     return Refinement(controls=kept.u, apply=kept.u[0], cost=kept.f, warm_cost=kept.warm_f[w],
                       violation=kept.max_violation, used_warm=kept.used_warm, status=r.status,
                       iterations=r.inner_iterations, start_index=start, behaviour=idx[start],
-                      grid_cost=grid(kept.u), warm_grid_cost=grid(warm[w]), trajectory=trajectory,
+                      grid_cost=grid(kept.u, data_grid, samples), warm_grid_cost=grid(warm[w], data_grid, samples),
+                      trajectory=trajectory,
                       costs=smooth_costs(kept.u, data, config))
 
 
