@@ -59,7 +59,8 @@ def _clean(obj, digits: int | None = None):
 
 def scenario_info(sc) -> dict:
     """The settings a reader needs to reproduce the numbers (SI units); a ship's resolved COLREGS option is in its
-    entry of ``ships`` when the option is on for some ship (docs/colregs_option.md)."""
+    entry of ``ships`` when the option is on for some ship (docs/colregs_option.md), its resolved stop remedy
+    when a remedy is in use (docs/methods/psbmpc.md)."""
     from ..methods.builtin import ship_option_record
 
     p = sc.mpc.params
