@@ -94,8 +94,9 @@ def test_refined_ships_with_different_remedies_are_refused_when_built():
     """``psbmpc_refine`` plans its ships with one refined controller: different remedies are refused by name."""
     sc = scenario_from_dict(give_way(targets=(HEADING, None), colavs=("psbmpc_refine", "psbmpc_refine"),
                                      method="psbmpc_refine"))
-    with pytest.raises(ValueError, match=r"method psbmpc_refine: its ships plan with one stop remedy .*'none' for "
-                                         r"\['OS', 'TS2'\]; 'colregs_heading' for \['TS1'\]"):
+    with pytest.raises(ValueError, match=r"method psbmpc_refine: its ships plan with one refined controller, .*"
+                                         r"got stop remedy 'none' for \['OS', 'TS2'\]; 'colregs_heading' for "
+                                         r"\['TS1'\]"):
         build_controllers(sc, BuildContext(params=sc.mpc.params))
     same = scenario_from_dict(give_way(own=HEADING, targets=(HEADING,), colavs=("psbmpc_refine",),
                                        method="psbmpc_refine"))

@@ -203,11 +203,12 @@ class Refined(Method):
 
     def build(self, scenario, ships, context: BuildContext):
         groups = option_groups(scenario, ships, self.name)   # refused when the option is on for a ship
-        if len(groups) > 1:          # only the stop remedy can differ here; a refined controller is one group
-            raise ValueError(f"method {self.name}: its ships plan with one stop remedy (one refined controller), "
-                             f"got " + "; ".join(f"{remedy!r} for {[scenario.ships[i].name for i in members]}"
-                                                  for members, _, remedy in groups)
-                             + " -- give them the same stop_remedy")
+        if len(groups) > 1:          # one refined controller plans every ship of the method: one group
+            raise ValueError(f"method {self.name}: its ships plan with one refined controller, so they need the same "
+                             f"stop remedy and COLREGS option settings; got stop remedy "
+                             + "; ".join(f"{remedy!r} for {[scenario.ships[i].name for i in members]}"
+                                         for members, _, remedy in groups)
+                             + " -- give them the same stop_remedy (and colregs_option)")
         from .grid import GridController
 
         controller = self.base.build(scenario, ships, context)
