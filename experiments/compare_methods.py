@@ -89,10 +89,15 @@ def main(argv=None) -> int:
                    help="comma-separated mpc.method values; the first is the baseline of the ratios")
     p.add_argument("--runs", type=int, default=None, help="Monte Carlo runs (default: the scenario's)")
     p.add_argument("--seed", type=int, default=None, help="base seed (default: the scenario's)")
+    p.add_argument("--first-run", type=int, default=0,
+                   help="Monte Carlo index of the first run (default 0): runs first .. first + runs - 1, each the same "
+                        "as in a larger set from 0 (to extend a committed set without re-running it)")
     p.add_argument("--out", required=True, help="output folder (new, or empty)")
     p.add_argument("--force", action="store_true", help="write into an --out folder that already holds results")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     args = p.parse_args(argv)
+    if args.first_run < 0:
+        p.error(f"--first-run must be >= 0, got {args.first_run}")
 
     from psbmpc_jax.scenario import METHODS, load_scenario
 
@@ -120,7 +125,7 @@ def main(argv=None) -> int:
     for m in methods:
         sc = scenarios[m]
         t0 = time.perf_counter()
-        res = simulate(sc, runs=args.runs, seed=args.seed, progress=not args.quiet)
+        res = simulate(sc, runs=args.runs, seed=args.seed, progress=not args.quiet, run_start=args.first_run)
         wall = time.perf_counter() - t0
         write_outputs(res, out / m, figures=True, force=args.force)
         results[m], records[m] = res, method_record(res, wall)
@@ -142,6 +147,7 @@ def main(argv=None) -> int:
         "source": first.source,
         "runs": records[methods[0]]["runs"],
         "seed": first.seed if args.seed is None else args.seed,
+        "first_run": args.first_run,
         "methods": records,
         "ratios": ratios(records, methods[0]),
         "commit": commit(),

@@ -188,3 +188,31 @@ def test_bad_previous_plan_options_are_refused(kw, call, match):
     with pytest.raises(ValueError, match=match):
         p = SmoothSBMPCPlanner((), settings=SETTINGS, dtype="float64", **({"n_starts": 2} | kw))
         call(p)
+
+
+def test_last_offsets_from_the_terminal_los_frame_are_accepted_beyond_the_box():
+    """With ``chi_d_mode="terminal_los"`` the applied offsets come back converted to the route frame (a box offset
+    plus the difference of the two LOS courses), so the next update's ``last`` may leave [-pi/2, pi/2]: the
+    reconstructed scene's 18-run set stopped with "last: the course offset chi_m must be in [-pi/2, pi/2] rad
+    (the DOCP's box), got 1.57854".  Accepted up to 3 pi/2 there; the route frame and the init stage alone keep
+    the box.  (A zero-length route leg, checked after ``last``, stops each call before anything compiles.)"""
+    zero_leg = np.array([[0.0, 0.0], [0.0, 0.0], [10.0, 0.0]])
+    state, no_targets = [0.0, 0.0, 0.0, 1.0], np.zeros((0, 4))
+    wide = SmoothSBMPCPlanner((), settings=SETTINGS, dtype="float64")
+    assert SETTINGS.chi_d_mode == "terminal_los"
+    for chi in (1.57854, -1.57854, 3 * math.pi / 2 - 1e-3):
+        with pytest.raises(ValueError, match="leg 0 has zero length"):            # last passed
+            wide.plan(state, zero_leg, no_targets, [1.0, chi])
+        with pytest.raises(ValueError, match="leg 0 has zero length"):
+            wide.plan_batch(np.array([state]), zero_leg, no_targets[None], np.array([[1.0, chi]]), [0])
+    with pytest.raises(ValueError, match=r"last: the course offset chi_m must be in \[-3pi/2, 3pi/2\] rad .*"
+                                         r"got 4\.72"):
+        wide.plan(state, zero_leg, no_targets, [1.0, 3 * math.pi / 2 + 0.01])
+    with pytest.raises(ValueError, match=r"speed factor U_m must be in"):
+        wide.plan(state, zero_leg, no_targets, [1.5, 0.0])
+    route_los = SmoothSettings(T_init=16.0, T_mpc=8.0, dt=1.0, n_y=51, chi_d_mode="route_los")
+    for p in (SmoothSBMPCPlanner((), settings=route_los, dtype="float64"),
+              SmoothSBMPCPlanner((), settings=SETTINGS, init_only=True, dtype="float64")):
+        with pytest.raises(ValueError, match=r"last: the course offset chi_m must be in \[-pi/2, pi/2\] rad "
+                                             r"\(the DOCP's box\), got 1\.57854"):
+            p.plan(state, zero_leg, no_targets, [1.0, 1.57854])

@@ -33,6 +33,7 @@ from .informed_settings import InformedSpec, parse_informed
 from .refine_settings import RefineSpec, parse_refine
 from .registry import SectionContext, register, register_section
 from .sbmpc_family import SbmpcSettings, parse_sbmpc
+from .stop_remedy_settings import REMEDY_METHODS, remedy_in_use, ship_remedy
 from .smooth_settings import SMOOTH_METHODS, FisSpec, SmoothSpec, SolverSpec, parse_fis, parse_smooth, parse_solver
 from .two_level_settings import TwoLevelSpec, parse_two_level
 
@@ -52,21 +53,31 @@ def resolved(obj):
 
 
 def option_groups(scenario, ships, method: str) -> list:
-    """``ships`` (indices of the ships that run ``method``) grouped by their resolved COLREGS option
-    (:func:`~psbmpc_jax.methods.colregs_option_settings.ship_option`: a ship's own ``colregs_option`` over
-    ``mpc.colregs_option``), in ship order: ``[(ships of the group, its ColregsOptionSpec)]``.  ValueError when it is on for a ship whose ``method`` it does not extend
+    """``ships`` (indices of the ships that run ``method``) grouped by their resolved COLREGS option and stop
+    remedy (:func:`~psbmpc_jax.methods.colregs_option_settings.ship_option`: a ship's own ``colregs_option`` over
+    ``mpc.colregs_option``; :func:`~psbmpc_jax.methods.stop_remedy_settings.ship_remedy`: its own ``stop_remedy``
+    over ``mpc.config.stop_remedy``), in ship order: ``[(ships of the group, its ColregsOptionSpec, its stop
+    remedy)]``.  ValueError when the option is on for a ship whose ``method`` it does not extend
     (docs/colregs_option.md)."""
     groups: dict = {}
     for i in ships:
-        groups.setdefault(ship_option(scenario, i), []).append(int(i))
+        groups.setdefault((ship_option(scenario, i), ship_remedy(scenario, i)), []).append(int(i))
     out = []
-    for spec, members in groups.items():
+    for (spec, remedy), members in groups.items():
         if spec.enabled and method not in OPTION_METHODS:
             names = [scenario.ships[i].name for i in members]
             raise ValueError(f"mpc.colregs_option is enabled for ship(s) {names}, but method {method} does not take "
                              f"it (only {', '.join(OPTION_METHODS)} do)")
-        out.append((tuple(members), spec))
+        out.append((tuple(members), spec, remedy))
     return out
+
+
+def with_remedy(mpc, remedy: str):
+    """``mpc`` (the scenario's ``MPCSpec``) with ``config.stop_remedy`` set to ``remedy`` (the same object when
+    it already is)."""
+    if mpc.config.stop_remedy == remedy:
+        return mpc
+    return dataclasses.replace(mpc, config=dataclasses.replace(mpc.config, stop_remedy=remedy))
 
 
 def option_terms(spec) -> tuple:
@@ -89,18 +100,21 @@ def held_path(terms, spec) -> tuple:
 
 
 def grid_controllers(scenario, ships, method: str, build):
-    """The controller of ``ships`` for a grid-search ``method``: ``build(group ships, option terms, freeze)`` (a
-    :class:`~psbmpc_jax.methods.grid.GridController`; ``freeze`` its argument of that name) once when every ship
-    has the same option, else once per group, combined into a :class:`~psbmpc_jax.methods.grid.GroupedController`."""
-    def one(members, spec):
-        return build(members, option_terms(spec), spec if spec.enabled and spec.freeze_course else None)
+    """The controller of ``ships`` for a grid-search ``method``: ``build(group ships, option terms, freeze, mpc)``
+    (a :class:`~psbmpc_jax.methods.grid.GridController`; ``freeze`` its argument of that name, ``mpc`` the
+    scenario's ``MPCSpec`` with the group's stop remedy, :func:`with_remedy`) once when every ship has the same
+    option and remedy, else once per group (:func:`option_groups`), combined into a
+    :class:`~psbmpc_jax.methods.grid.GroupedController`."""
+    def one(members, spec, remedy):
+        return build(members, option_terms(spec), spec if spec.enabled and spec.freeze_course else None,
+                     with_remedy(scenario.mpc, remedy))
 
     groups = option_groups(scenario, ships, method)
     if len(groups) == 1:
         return one(*groups[0])
     from .grid import GroupedController
 
-    return GroupedController([one(members, spec) for members, spec in groups])
+    return GroupedController([one(*group) for group in groups])
 
 
 def option_record(scenario) -> dict:
@@ -112,11 +126,17 @@ def option_record(scenario) -> dict:
 
 
 def ship_option_record(scenario, i: int) -> dict:
-    """Ship ``i``'s resolved option for the ships' records: ``{"colregs_option": ...}`` when the option is on for
-    some ship of the scenario and ship ``i`` runs a method it extends (enabled or not), else nothing."""
-    if scenario.ships[i].colav not in OPTION_METHODS or not option_in_use(scenario):
-        return {}
-    return {"colregs_option": asdict(ship_option(scenario, i))}
+    """Ship ``i``'s resolved option and stop remedy for the ships' records: ``{"colregs_option": ...}`` when the
+    option is on for some ship of the scenario and ship ``i`` runs a method it extends (enabled or not);
+    ``{"stop_remedy": ...}`` when a remedy is in use
+    (:func:`~psbmpc_jax.methods.stop_remedy_settings.remedy_in_use`) and ship ``i`` runs a method that reads it;
+    else nothing (the records of the published costs stay as they were)."""
+    colav, out = scenario.ships[i].colav, {}
+    if colav in OPTION_METHODS and option_in_use(scenario):
+        out["colregs_option"] = asdict(ship_option(scenario, i))
+    if colav in REMEDY_METHODS and remedy_in_use(scenario):
+        out["stop_remedy"] = ship_remedy(scenario, i)
+    return out
 
 
 def _sbmpc_family_grounding(scenario) -> bool:
@@ -150,8 +170,8 @@ class Psbmpc(Method):
 
         from ..evaluate import DEFAULT_TERMS
 
-        return grid_controllers(scenario, ships, self.name, lambda group, option, freeze: GridController(
-            group, context.mode, scenario.mpc, context.params, context.samples, method=self.name,
+        return grid_controllers(scenario, ships, self.name, lambda group, option, freeze, mpc: GridController(
+            group, context.mode, mpc, context.params, context.samples, method=self.name,
             terms=held_path(DEFAULT_TERMS, ship_option(scenario, group[0])) + option, devices=context.devices,
             freeze=freeze))
 
@@ -182,7 +202,13 @@ class Refined(Method):
         return self.base.untuned(given_sections, mpc)
 
     def build(self, scenario, ships, context: BuildContext):
-        option_groups(scenario, ships, self.name)   # refused when the option is on for a ship (not in the refinement)
+        groups = option_groups(scenario, ships, self.name)   # refused when the option is on for a ship
+        if len(groups) > 1:          # one refined controller plans every ship of the method: one group
+            raise ValueError(f"method {self.name}: its ships plan with one refined controller, so they need the same "
+                             f"stop remedy and COLREGS option settings; got stop remedy "
+                             + "; ".join(f"{remedy!r} for {[scenario.ships[i].name for i in members]}"
+                                         for members, _, remedy in groups)
+                             + " -- give them the same stop_remedy (and colregs_option)")
         from .grid import GridController
 
         controller = self.base.build(scenario, ships, context)
@@ -223,8 +249,8 @@ class Sbmpc(Method):
         from .grid import GridController
 
         published = self.terms(scenario)
-        return grid_controllers(scenario, ships, self.name, lambda group, option, freeze: GridController(
-            group, context.mode, scenario.mpc, context.params, context.samples, method=self.name, n_ps=1,
+        return grid_controllers(scenario, ships, self.name, lambda group, option, freeze, mpc: GridController(
+            group, context.mode, mpc, context.params, context.samples, method=self.name, n_ps=1,
             terms=published + option, devices=context.devices, freeze=freeze))
 
     def record(self, scenario) -> dict:
@@ -260,8 +286,8 @@ class InformedSbmpc(Method):
         from .sbmpc_family import informed_terms
 
         inf = scenario.mpc.informed
-        return grid_controllers(scenario, ships, self.name, lambda group, option, freeze: GridController(
-            group, context.mode, scenario.mpc, context.params, context.samples, terms=informed_terms(inf) + option,
+        return grid_controllers(scenario, ships, self.name, lambda group, option, freeze, mpc: GridController(
+            group, context.mode, mpc, context.params, context.samples, terms=informed_terms(inf) + option,
             n_ps=1, method=self.name, informed=True, d_init=inf.d_init, devices=context.devices, freeze=freeze))
 
     def record(self, scenario) -> dict:

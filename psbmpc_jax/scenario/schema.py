@@ -62,6 +62,9 @@ class ShipSpec:
         colregs_option: the ship's own COLREGS option (a
             :class:`~psbmpc_jax.methods.colregs_option_settings.ColregsOptionSpec`: its ``colregs_option`` section
             over ``mpc.colregs_option``), or None: ``mpc.colregs_option`` (docs/colregs_option.md).
+        stop_remedy: the ship's own stop remedy (its ``stop_remedy`` key, one of
+            :data:`~psbmpc_jax.params.STOP_REMEDIES`), or None: ``mpc.config.stop_remedy``
+            (:mod:`psbmpc_jax.methods.stop_remedy_settings`).
         motion_model: ``"kinematic"`` (the planner's model with autopilot lags ``T_chi``, ``T_U``) or ``"3dof"``
             (Fossen's manoeuvring model, :mod:`psbmpc_jax.sim.vessel3dof`, preset ``vessel_model``).
 
@@ -89,6 +92,7 @@ class ShipSpec:
     motion_model: str = "kinematic"
     vessel_model: str | None = None
     colregs_option: Any = None
+    stop_remedy: str | None = None
 
     @property
     def is_point(self) -> bool:

@@ -16,13 +16,14 @@ from ..config import as_bool, as_choice, as_mapping, as_number, as_point, as_poi
 from .mpc import ship_colav
 from ..methods.colregs_option_settings import parse_ship_option
 from ..methods.smooth_settings import SMOOTH_METHODS
+from ..methods.stop_remedy_settings import parse_ship_remedy
 from .schema import DEFAULT_ROUTE_MIN_M, MOTION_MODELS, RULE18_ROLES, ShipSpec, VESSEL_MODELS
 
 
 _SHIP_KEYS = ("name", "position_m", "position_utm", "position_latlon", "course_deg", "speed_mps", "speed_kn",
               "nominal_speed_mps", "nominal_speed_kn", "waypoints_m", "waypoints_utm", "waypoints_latlon", "speed_plan", "length_m", "width_m", "T_chi_s",
               "T_U_s", "lookahead_m", "R_a_m", "colav", "allow_route_over_land", "shares_route", "rule18_role",
-              "motion_model", "vessel_model", "leg_speeds_mps", "colregs_option")
+              "motion_model", "vessel_model", "leg_speeds_mps", "colregs_option", "stop_remedy")
 
 
 _PLAN_KEYS = ("t_s", "speed_mps", "speed_kn")
@@ -184,6 +185,8 @@ def read_ship(d, where: str, *, own: bool, ctx: dict) -> ShipSpec:
     if "colregs_option" in d:
         out["colregs_option"] = parse_ship_option(d["colregs_option"], colav, f"{where}.colregs_option",
                                                   ctx.get("colregs_option"))
+    if "stop_remedy" in d:
+        out["stop_remedy"] = parse_ship_remedy(d["stop_remedy"], colav, f"{where}.stop_remedy", name)
     if "leg_speeds_mps" in d:
         ls = d["leg_speeds_mps"]
         if wkey is None:

@@ -60,7 +60,8 @@ def _clean(obj, digits: int | None = None):
 def scenario_info(sc) -> dict:
     """The settings a reader needs to reproduce the numbers (SI units); ``overrides``: the file's settings its
     loader replaced (a campaign's ``duration_s``: ``Scenario.overrides``); a ship's resolved COLREGS option is in
-    its entry of ``ships`` when the option is on for some ship (docs/colregs_option.md)."""
+    its entry of ``ships`` when the option is on for some ship (docs/colregs_option.md), its resolved stop remedy
+    when a remedy is in use (docs/methods/psbmpc.md)."""
     from ..methods.builtin import ship_option_record
 
     p = sc.mpc.params

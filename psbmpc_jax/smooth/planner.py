@@ -23,6 +23,8 @@ Simulation 01: the init stage alone, whose first offsets are applied.
 
 from __future__ import annotations
 
+import math
+
 from typing import NamedTuple
 
 import jax
@@ -165,16 +167,26 @@ def _ship_states(a: np.ndarray, name: str) -> None:
                          f"speed (0 to {MAX_SPEED_MPS:g} m/s allowed); knots or km/h given as m/s?")
 
 
-def _offsets(a: np.ndarray, name: str, tol: float = 1e-6) -> None:
-    """Applied offsets (U_m, χ_m) inside the DOCP's box (the extremes of the behaviour sets)."""
-    lo, hi = np.asarray(LOWER), np.asarray(UPPER)
+def _offsets(a: np.ndarray, name: str, tol: float = 1e-6, frames: bool = False) -> None:
+    """Applied offsets (U_m, χ_m) inside the DOCP's box (the extremes of the behaviour sets).  ``frames``
+    (``chi_d_mode="terminal_los"``): the offsets applied last are the DOCP's, converted to the route frame
+    (:func:`psbmpc_jax.smooth.docp.to_route_frame`: a box offset plus the wrapped difference of the two LOS
+    courses), so χ_m may be up to π beyond the box, |χ_m| <= 3π/2."""
+    lo, hi = np.asarray(LOWER, float), np.asarray(UPPER, float)
+    if frames:
+        lo[1], hi[1] = lo[1] - math.pi, hi[1] + math.pi
     bad = (a < lo - tol) | (a > hi + tol)
     if np.any(bad):
         col = int(np.argwhere(bad)[0][-1])
         v = float(a[..., col][bad[..., col]].flat[0])
-        what = (f"the speed factor U_m must be in [{LOWER[0]:g}, {UPPER[0]:g}]" if col == 0 else
-                "the course offset chi_m must be in [-pi/2, pi/2] rad")
-        raise ValueError(f"{name}: {what} (the DOCP's box), got {v:g}")
+        if col == 0:
+            what = f"the speed factor U_m must be in [{LOWER[0]:g}, {UPPER[0]:g}] (the DOCP's box)"
+        elif frames:
+            what = ("the course offset chi_m must be in [-3pi/2, 3pi/2] rad (the DOCP's box [-pi/2, pi/2] plus "
+                    "at most pi between the terminal-LOS and the route frame)")
+        else:
+            what = "the course offset chi_m must be in [-pi/2, pi/2] rad (the DOCP's box)"
+        raise ValueError(f"{name}: {what}, got {v:g}")
 
 
 def _route_legs(route: np.ndarray, name: str = "route") -> None:
@@ -239,6 +251,8 @@ class SmoothSBMPCPlanner:
         self.weights = SmoothWeights() if weights is None else weights
         self.model = ShipModel() if model is None else model
         self.settings = SmoothSettings() if settings is None else settings
+        # offsets applied last come back from the terminal-LOS frame (wider than the box in the route frame)
+        self._frames = not init_only and self.settings.chi_d_mode == "terminal_los"
         self.solver = DOCP_SOLVER if solver is None else solver
         if not isinstance(self.weights, SmoothWeights):
             raise ValueError(f"weights must be a SmoothWeights, got {type(self.weights).__name__}")
@@ -347,7 +361,8 @@ class SmoothSBMPCPlanner:
 
         Raises ``ValueError`` naming the input for a wrong shape, a non-finite value, a course outside
         ``|course| <= 2 pi`` (degrees?), a speed outside 0 to 30 m/s, ``last`` outside the DOCP's box
-        (U_m in [0.1, 1], χ_m in [-pi/2, pi/2]) or a zero-length route leg; ``ResourceError`` (a ValueError)
+        (U_m in [0.1, 1], χ_m in [-pi/2, pi/2]; with ``chi_d_mode="terminal_los"`` χ_m in [-3pi/2, 3pi/2], the
+        DOCP's offsets converted back to the route frame) or a zero-length route leg; ``ResourceError`` (a ValueError)
         before anything is compiled when the update's estimated time exceeds the limit
         (:mod:`psbmpc_jax.update_time`, naming the setting)."""
         state0 = _array(state0, "state0", lambda s: s == (4,), "[4] (north, east, course, speed)")
@@ -358,7 +373,7 @@ class SmoothSBMPCPlanner:
         z = _segments(segment, None, route.shape[0], "segment")
         _ship_states(state0, "state0")
         _ship_states(targets, "targets")
-        _offsets(last, "last")
+        _offsets(last, "last", frames=self._frames)
         _route_legs(route)
         prev = self._previous(previous, ())
         self._check_time(targets.shape[0])
@@ -384,7 +399,7 @@ class SmoothSBMPCPlanner:
         z = _segments(segments, R, route.shape[0], "segments")
         _ship_states(states, "states")
         _ship_states(targets, "targets")
-        _offsets(last, "last")
+        _offsets(last, "last", frames=self._frames)
         _route_legs(route)
         prev = self._previous(previous, (R,))
         self._check_time(targets.shape[1])
