@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import asdict
+from typing import Any
 
 from ..design_ship import SCALE_PARAMS
 from .base import BuildContext, DesignShip, Method
@@ -131,7 +132,8 @@ def ship_option_record(scenario, i: int) -> dict:
     ``{"stop_remedy": ...}`` when a remedy is in use
     (:func:`~psbmpc_jax.methods.stop_remedy_settings.remedy_in_use`) and ship ``i`` runs a method that reads it;
     else nothing (the records of the published costs stay as they were)."""
-    colav, out = scenario.ships[i].colav, {}
+    colav = scenario.ships[i].colav
+    out: dict[str, Any] = {}
     if colav in OPTION_METHODS and option_in_use(scenario):
         out["colregs_option"] = asdict(ship_option(scenario, i))
     if colav in REMEDY_METHODS and remedy_in_use(scenario):
