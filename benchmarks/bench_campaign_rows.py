@@ -40,28 +40,13 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 sys.path.insert(0, str(ROOT / "tests"))
+from processes import children  # noqa: E402  (tests/processes.py: the campaign tests use it too)
 
 _SUMMARY = re.compile(r"(\d+) tasks \((\d+) done before, (\d+) run now\)")
 
 
 def markers(folder: pathlib.Path) -> int:
     return len(list((folder / "tasks").glob("*.done.json"))) if (folder / "tasks").is_dir() else 0
-
-
-def children(pid: int, needle: bytes) -> list[int]:
-    """Processes whose parent is ``pid`` and whose command line holds ``needle`` (Linux /proc)."""
-    out = []
-    for p in pathlib.Path("/proc").iterdir():
-        if not p.name.isdigit():
-            continue
-        try:
-            ppid = int((p / "stat").read_text().rsplit(")", 1)[1].split()[1])
-            cmd = (p / "cmdline").read_bytes()
-        except (OSError, IndexError, ValueError):
-            continue
-        if ppid == pid and needle in cmd:
-            out.append(int(p.name))
-    return out
 
 
 class Campaign:

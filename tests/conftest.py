@@ -370,3 +370,19 @@ def fixed_caps(monkeypatch):
 
 
 from tuned_scenarios import sbmpc_tuned_scenarios  # noqa: E402,F401  (tests import it from conftest)
+
+
+def run_cli(argv) -> tuple[int, str, str]:
+    """``psbmpc-jax ARGV`` in this process: (exit status, stdout, stderr); a ``SystemExit`` gives its code."""
+    import contextlib
+    import io
+
+    from psbmpc_jax.apps.cli import main
+
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            rc = main(argv)
+        except SystemExit as exc:
+            rc = exc.code
+    return rc, out.getvalue(), err.getvalue()

@@ -11,6 +11,7 @@ import time
 
 import pandas as pd
 import pytest
+from processes import children
 
 from psbmpc_jax.campaign import KEY_COLUMNS, comparable, definition_from_dict, run_campaign
 from psbmpc_jax.campaign.store import RUNS_FILE
@@ -26,18 +27,7 @@ def markers(folder) -> int:
 
 def worker_pids() -> list[int]:
     """This process's campaign worker processes (children running psbmpc_jax.campaign.worker)."""
-    pids = []
-    for p in pathlib.Path("/proc").iterdir():
-        if not p.name.isdigit():
-            continue
-        try:
-            ppid = int((p / "stat").read_text().rsplit(")", 1)[1].split()[1])
-            cmd = (p / "cmdline").read_bytes()
-        except (OSError, IndexError, ValueError):
-            continue
-        if ppid == os.getpid() and b"psbmpc_jax.campaign.worker" in cmd:
-            pids.append(int(p.name))
-    return pids
+    return children(os.getpid(), b"psbmpc_jax.campaign.worker")
 
 
 @pytest.fixture(scope="module")

@@ -11,17 +11,15 @@
 
 from __future__ import annotations
 
-import contextlib
-import io
 import json
 import os
 import time
 
 import pytest
+from conftest import run_cli
 
-from psbmpc_jax.apps.cli import main
-from psbmpc_jax.sim.output import evaluation_markdown
 from psbmpc_jax.runfolder import read_manifest
+from psbmpc_jax.sim.output import evaluation_markdown
 
 TINY = (
     "name: tiny_eval\n"
@@ -39,14 +37,6 @@ USER_CSV = "t_s,vessel,north_m,east_m\n" + "".join(
     f"{t},own,{t},0\n{t},ferry,{200 - t},5\n" for t in range(0, 200, 2))
 
 
-def run_cli(argv) -> tuple[int, str, str]:
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        try:
-            rc = main(argv)
-        except SystemExit as exc:
-            rc = exc.code
-    return rc, out.getvalue(), err.getvalue()
 
 
 @pytest.fixture(scope="module")

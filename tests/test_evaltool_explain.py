@@ -13,16 +13,14 @@
 
 from __future__ import annotations
 
-import contextlib
-import io
 import json
 import math
 import pathlib
 
 import numpy as np
 import pytest
+from conftest import run_cli
 
-from psbmpc_jax.apps.cli import main
 from psbmpc_jax.evaltool import EvalParams, evaluate_file, evaluate_tracks, get_params
 from psbmpc_jax.evaltool.explain import COMPOSITION, explain_encounter, explanation_text
 from psbmpc_jax.evaltool.synthetic import scripted_tracks
@@ -216,14 +214,6 @@ def test_stage_entries_are_the_crossings_of_the_stage_radii(evaluations):
 
 
 # -------------------------------------------------------------------------------------------- command line
-def run_cli(argv):
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        try:
-            rc = main(argv)
-        except SystemExit as exc:
-            rc = exc.code
-    return rc, out.getvalue(), err.getvalue()
 
 
 def write_csv(path, vessels):

@@ -14,8 +14,6 @@ refuses, as for ``run``).  Two kinds of kill:
 
 from __future__ import annotations
 
-import contextlib
-import io
 import json
 import os
 import subprocess
@@ -25,8 +23,8 @@ import time
 
 import numpy as np
 import pytest
+from conftest import run_cli as conftest_run_cli
 
-from psbmpc_jax.apps.cli import main
 from psbmpc_jax.runfolder import RunFolderError, read_manifest, verify_member
 from psbmpc_jax.safe_io import TEMP_SUFFIX
 
@@ -39,11 +37,7 @@ TRACKS_B = "t_s,vessel,north_m,east_m\n" + "".join(
 
 
 def run_cli(argv) -> int:
-    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
-        try:
-            return main(argv)
-        except SystemExit as exc:
-            return exc.code
+    return conftest_run_cli(argv)[0]
 
 
 @pytest.fixture(scope="module")

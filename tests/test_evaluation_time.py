@@ -6,16 +6,14 @@ estimate logged.  No test here times anything: the estimate is compared with com
 
 from __future__ import annotations
 
-import contextlib
-import io
 import json
 import pathlib
 
 import numpy as np
 import pytest
+from conftest import run_cli
 
 from psbmpc_jax import limits
-from psbmpc_jax.apps.cli import main
 from psbmpc_jax.evaltool import evaluate_file, evaluate_tracks, load_runs
 from psbmpc_jax.evaltool.evaluate import run_shapes
 from psbmpc_jax.evaltool.tracks import Tracks
@@ -25,14 +23,6 @@ RESULTS = ROOT / "benchmarks" / "results"
 AIS_EXAMPLE = ROOT / "examples" / "ais" / "crossing_trondheimsfjord.csv"
 
 
-def run_cli(argv) -> tuple[int, str, str]:
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        try:
-            rc = main(argv)
-        except SystemExit as exc:
-            rc = exc.code
-    return rc, out.getvalue(), err.getvalue()
 
 
 def hours_csv(path: pathlib.Path, vessels: int = 10) -> pathlib.Path:
