@@ -190,3 +190,13 @@ def test_closed_loop_only_the_own_ship_has_the_remedy(monkeypatch, tmp_path):
     doc = json.loads((tmp_path / "run" / "metrics.json").read_text())
     assert [(s["name"], s["stop_remedy"]) for s in doc["scenario"]["ships"]] == [("OS", HEADING), ("TS1", "none")]
     assert doc["scenario"]["mpc"]["config"]["stop_remedy"] == "none"     # the scenario-wide default, unchanged
+
+
+def test_a_scenario_wide_remedy_no_ship_reads_is_refused():
+    """``mpc.config.stop_remedy`` on a scenario none of whose ships runs a method with the Boolean COLREGS indicator
+    would be ignored: refused naming the field and the ships' methods; accepted when one ship reads it."""
+    with pytest.raises(ValueError,
+                       match=r"mpc.config.stop_remedy = 'colregs_heading': no ship .* \(the ships run sbmpc, none;"):
+        scenario_from_dict(give_way(mpc_remedy=HEADING, method="sbmpc", colavs=("none",)))
+    sc = scenario_from_dict(give_way(mpc_remedy=HEADING, colavs=("none",)))          # the own-ship reads it
+    assert ship_remedy(sc, 0) == HEADING

@@ -32,6 +32,17 @@ def parse_ship_remedy(value, colav: str, where: str, name: str | None = None) ->
     return value
 
 
+def check_scenario_remedy(remedy: str, methods) -> None:
+    """``mpc.config.stop_remedy`` other than ``"none"`` needs a ship that reads it: ValueError naming the field and
+    the scenario's methods when none of them (``methods``: every ship's, own-ship first) is one of
+    :data:`REMEDY_METHODS` (the setting would be ignored)."""
+    methods = tuple(methods)
+    if remedy != "none" and not any(m in REMEDY_METHODS for m in methods):
+        raise ValueError(f"mpc.config.stop_remedy = {remedy!r}: no ship of the scenario runs a method that reads it "
+                         f"(the ships run {', '.join(dict.fromkeys(methods))}; only {', '.join(REMEDY_METHODS)} "
+                         f"have the Boolean COLREGS indicator it changes); leave it out or set it to 'none'")
+
+
 def ship_remedy(scenario, i: int) -> str:
     """Ship ``i``'s resolved stop remedy: its own ``stop_remedy`` when it gives one (``ShipSpec.stop_remedy``),
     else ``mpc.config.stop_remedy``."""
@@ -47,4 +58,4 @@ def remedy_in_use(scenario) -> bool:
                for i, s in enumerate(scenario.ships))
 
 
-__all__ = ["REMEDY_METHODS", "parse_ship_remedy", "ship_remedy", "remedy_in_use"]
+__all__ = ["REMEDY_METHODS", "parse_ship_remedy", "check_scenario_remedy", "ship_remedy", "remedy_in_use"]

@@ -23,6 +23,7 @@ from .schema import SCENARIO_DIR, Scenario
 from .ships import read_ship
 from .world import chart_source, clip_polygons, read_origin_latlon, read_sensor
 from ..methods.registry import get_method
+from ..methods.stop_remedy_settings import check_scenario_remedy
 
 
 _TOP_KEYS = ("name", "description", "simulation", "monte_carlo", "collision_distance_m", "evaluation", "mpc", "sensor",
@@ -230,6 +231,7 @@ def scenario_from_dict(data: dict, base_dir=None, source: str | None = None, *, 
     rings = tuple(tuple(np.asarray(r, dtype=float) for r in rs) for rs in to_ring_sets(polys)) if polys else ()
     info.update(rdp_eps_m=rdp_eps, clip_m=clip, n_polygons=len(rings),
                 n_vertices=int(sum(len(r) for rs in rings for r in rs)))
+    check_scenario_remedy(mpc.config.stop_remedy, [own.colav] + [t.colav for t in targets])
     _check_method_fit(mpc, own, targets)
     _check_solve_memory(mpc, len(targets), bool(rings))
     _check_update_time(mpc, len(targets), int(info["n_vertices"]))
